@@ -1,0 +1,109 @@
+// Scene-level mesh preparation: clean (OpenMesh) -> subdivide (OpenSubdiv) -> exact bounds.
+#include "mesh/prepare.h"
+
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+
+namespace rtp {
+
+PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
+  PrepareReport rep;
+  rep.triangles_before = scene.unique_triangles();
+  std::vector<CleanReport> per(scene.meshes.size());
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { per[m] = clean_mesh(scene.meshes[m], opt.clean); });
+  for (const CleanReport& c : per) {
+    rep.clean.degenerate_removed += c.degenerate_removed;
+    rep.clean.nonfinite_removed += c.nonfinite_removed;
+    rep.clean.welded_vertices += c.welded_vertices;
+    rep.clean.nonmanifold_edges += c.nonmanifold_edges;
+    rep.clean.nonmanifold_faces += c.nonmanifold_faces;
+    rep.clean.nonmanifold_vertices += c.nonmanifold_vertices;
+    rep.clean.boundary_edges += c.boundary_edges;
+    rep.clean.unused_vertices_removed += c.unused_vertices_removed;
+  }
+  // Drop meshes that cleaning emptied, remapping instances.
+  std::vector<uint32_t> remap(scene.meshes.size(), kNoIndex);
+  std::vector<Mesh> kept;
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (scene.meshes[m].triangle_count() == 0) {
+      ++rep.meshes_emptied;
+      scene.warnings.push_back("mesh '" + scene.meshes[m].name + "': no triangle left after clean-up; dropped with its instances");
+      continue;
+    }
+    remap[m] = uint32_t(kept.size());
+    kept.push_back(std::move(scene.meshes[m]));
+  }
+  scene.meshes = std::move(kept);
+  std::vector<Instance> inst;
+  inst.reserve(scene.instances.size());
+  for (Instance i : scene.instances)
+    if ((i.mesh = remap[i.mesh]) != kNoIndex) inst.push_back(i);
+  scene.instances = std::move(inst);
+
+  if (opt.subdivide_levels > 0 && opt.subdivide_to > 0)
+    throw Error(ExitCode::kUsage, "--subdivide and --subdivide-to exclude each other");
+  if (opt.subdivide_levels > 0) {
+    rep.uniform_levels = opt.subdivide_levels;
+    std::vector<uint8_t> fb(scene.meshes.size(), 0);
+    tbb::parallel_for(size_t(0), scene.meshes.size(),
+                      [&](size_t m) { fb[m] = subdivide_uniform(scene.meshes[m], opt.subdivide_levels).used_fallback; });
+    for (uint8_t f : fb) rep.uniform_fallbacks += f;
+  } else if (opt.subdivide_to > 0) {
+    rep.adaptive = true;
+    rep.subdivide = subdivide_to_length(scene, opt.subdivide_to, opt.subdivide_max_levels);
+  }
+  rep.triangles_after = scene.unique_triangles();
+  scene.bounds = compute_world_bounds(scene);
+  return rep;
+}
+
+nlohmann::json prepare_report_json(const PrepareReport& r) {
+  nlohmann::json j = {{"degenerate_removed", r.clean.degenerate_removed},
+                      {"nonfinite_removed", r.clean.nonfinite_removed},
+                      {"welded_vertices", r.clean.welded_vertices},
+                      {"unused_vertices_removed", r.clean.unused_vertices_removed},
+                      {"nonmanifold_edges", r.clean.nonmanifold_edges},
+                      {"nonmanifold_faces", r.clean.nonmanifold_faces},
+                      {"nonmanifold_vertices", r.clean.nonmanifold_vertices},
+                      {"boundary_edges", r.clean.boundary_edges},
+                      {"meshes_emptied", r.meshes_emptied},
+                      {"uniform_levels", r.uniform_levels},
+                      {"uniform_fallbacks", r.uniform_fallbacks},
+                      {"triangles_before", r.triangles_before},
+                      {"triangles_after", r.triangles_after}};
+  if (r.adaptive) {
+    nlohmann::json per = nlohmann::json::array();
+    for (const auto& m : r.subdivide.meshes)
+      per.push_back({{"mesh", m.mesh}, {"levels", m.levels}, {"hit_cap", m.hit_cap},
+                     {"max_scale", m.max_scale}, {"triangles_before", m.triangles_before},
+                     {"triangles_after", m.triangles_after},
+                     {"longest_world_edge_before", m.longest_world_edge_before},
+                     {"longest_world_edge_after", m.longest_world_edge_after}});
+    j["adaptive"] = {{"meshes_subdivided", r.subdivide.meshes_subdivided},
+                     {"meshes_at_cap", r.subdivide.meshes_at_cap},
+                     {"per_mesh", per}};
+  }
+  return j;
+}
+
+std::string prepare_report_text(const PrepareReport& r) {
+  using std::to_string;
+  std::string o = "preparation\n";
+  o += "  removed              " + to_string(r.clean.degenerate_removed) + " degenerate, " +
+       to_string(r.clean.nonfinite_removed) + " non-finite triangles\n";
+  o += "  vertices             " + to_string(r.clean.welded_vertices) + " welded, " +
+       to_string(r.clean.unused_vertices_removed) + " unused removed\n";
+  o += "  topology             " + to_string(r.clean.nonmanifold_edges) + " non-manifold edges, " +
+       to_string(r.clean.boundary_edges) + " boundary edges (reported, kept)\n";
+  if (r.uniform_levels)
+    o += "  subdivision          uniform Loop x" + to_string(r.uniform_levels) +
+         (r.uniform_fallbacks ? " (" + to_string(r.uniform_fallbacks) + " meshes used the midpoint fallback)" : "") + "\n";
+  if (r.adaptive)
+    o += "  subdivision          adaptive: " + to_string(r.subdivide.meshes_subdivided) + " meshes refined, " +
+         to_string(r.subdivide.meshes_at_cap) + " at the level cap\n";
+  o += "  unique triangles     " + to_string(r.triangles_before) + " -> " + to_string(r.triangles_after) + "\n";
+  return o;
+}
+
+}  // namespace rtp

@@ -1,0 +1,70 @@
+// glTF -> Scene: load and validate the document, build each used mesh once (in parallel), place
+// instances, compute world bounds.
+#include "scene/import.h"
+
+#include <tbb/parallel_for.h>
+
+#include <map>
+
+#include "core/error.h"
+#include "scene/gltf_internal.h"
+
+namespace rtp {
+
+Scene import_gltf(const std::string& path, const ImportOptions& options) {
+  using std::to_string;
+  gltf::Document doc = gltf::load_document(path);
+  Scene scene;
+  scene.source_path = path;
+  const int n_scenes = int(doc.model.scenes.size());
+  int which = options.scene;
+  if (which >= 0 && which >= n_scenes)
+    throw Error(ExitCode::kUsage, "--scene " + to_string(which) + ": the file has " + to_string(n_scenes) + " scenes");
+  if (which < 0) which = doc.model.defaultScene >= 0 ? doc.model.defaultScene : (n_scenes > 0 ? 0 : -1);
+  if (which < 0 && !doc.model.nodes.empty())
+    doc.warnings.push_back("/scenes: the file defines no scene; using every root node");
+  scene.gltf_scene = which;
+  gltf::walk_nodes(doc, which, scene);
+
+  // Each used glTF mesh becomes one Mesh, whatever number of nodes/instances use it.
+  std::map<uint32_t, uint32_t> used;
+  for (const Instance& inst : scene.instances) used.emplace(inst.mesh, 0);
+  std::vector<uint32_t> order;
+  for (auto& [g, _] : used) order.push_back(g);
+  std::vector<Mesh> built(order.size());
+  std::vector<std::vector<std::string>> mesh_warnings(order.size());
+  std::vector<std::exception_ptr> errors(order.size());
+  tbb::parallel_for(size_t(0), order.size(), [&](size_t i) {
+    try {
+      built[i] = gltf::build_mesh(doc.model, int(order[i]), mesh_warnings[i]);
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (auto& e : errors)  // the first error in file order, whatever the thread timing
+    if (e) std::rethrow_exception(e);
+  for (size_t i = 0; i < order.size(); ++i) {
+    doc.warnings.insert(doc.warnings.end(), mesh_warnings[i].begin(), mesh_warnings[i].end());
+    if (built[i].triangle_count() == 0) {
+      doc.warnings.push_back("/meshes/" + to_string(order[i]) + ": no triangles; its instances are dropped");
+      used[order[i]] = kNoIndex;
+      continue;
+    }
+    used[order[i]] = uint32_t(scene.meshes.size());
+    scene.meshes.push_back(std::move(built[i]));
+  }
+  std::vector<Instance> kept;
+  kept.reserve(scene.instances.size());
+  for (Instance inst : scene.instances) {
+    inst.mesh = used[inst.mesh];
+    if (inst.mesh != kNoIndex) kept.push_back(inst);
+  }
+  scene.instances = std::move(kept);
+  scene.warnings.insert(scene.warnings.begin(), doc.warnings.begin(), doc.warnings.end());
+  if (options.on_warning)
+    for (const auto& w : scene.warnings) options.on_warning(w);
+  scene.bounds = compute_world_bounds(scene);
+  return scene;
+}
+
+}  // namespace rtp

@@ -1,0 +1,18 @@
+#pragma once
+// glTF 2.0 import (.gltf with external/data-URI buffers, .glb), with Draco, meshopt, quantization,
+// sparse accessors and EXT_mesh_gpu_instancing. Throws rtp::Error naming the JSON pointer on bad input.
+#include <functional>
+#include <string>
+
+#include "scene/scene.h"
+
+namespace rtp {
+
+struct ImportOptions {
+  int scene = -1;  // -1: the file's default scene (or scene 0 when none is set)
+  std::function<void(const std::string&)> on_warning;  // also collected in Scene::warnings
+};
+
+Scene import_gltf(const std::string& path, const ImportOptions& options = {});
+
+}  // namespace rtp

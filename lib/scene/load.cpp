@@ -1,0 +1,275 @@
+// Reading a glTF file: container checks, JSON validation, meshopt fallback buffers, tinygltf + Draco.
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "core/error.h"
+#include "scene/gltf_internal.h"
+
+namespace rtp::gltf {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr uint32_t kGlbMagic = 0x46546C67;  // "glTF"
+constexpr uint32_t kChunkJson = 0x4E4F534A;
+constexpr uint32_t kChunkBin = 0x004E4942;
+constexpr uint64_t k4GiB = 1ull << 32;
+
+uint32_t read_u32(const std::string& b, size_t off) {
+  uint32_t v;
+  std::memcpy(&v, b.data() + off, 4);
+  return v;
+}
+
+std::string read_whole(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  if (!f) throw Error(ExitCode::kInputIo, "cannot open '" + p.string() + "': " + std::strerror(errno));
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  if (f.bad()) throw Error(ExitCode::kInputIo, "cannot read '" + p.string() + "'");
+  return ss.str();
+}
+
+// Extensions whose meaning we implement, or which only concern materials/textures/lights and so
+// cannot change the geometry we import.
+const std::set<std::string>& known_extensions() {
+  static const std::set<std::string> k = {
+      "KHR_draco_mesh_compression", "KHR_mesh_quantization", "EXT_meshopt_compression",
+      "EXT_mesh_gpu_instancing", "KHR_texture_transform", "KHR_texture_basisu", "EXT_texture_webp",
+      "KHR_lights_punctual", "KHR_materials_unlit", "KHR_materials_pbrSpecularGlossiness",
+      "KHR_materials_clearcoat", "KHR_materials_transmission", "KHR_materials_volume",
+      "KHR_materials_ior", "KHR_materials_specular", "KHR_materials_sheen",
+      "KHR_materials_emissive_strength", "KHR_materials_iridescence", "KHR_materials_variants",
+      "KHR_materials_anisotropy", "KHR_materials_dispersion"};
+  return k;
+}
+
+// tinygltf file callbacks: absolute paths only, so the current directory is never searched.
+bool fs_exists(const std::string& p, void*) {
+  std::error_code ec;
+  return fs::path(p).is_absolute() && fs::is_regular_file(p, ec);
+}
+std::string fs_expand(const std::string& p, void*) { return p; }
+bool fs_read(std::vector<unsigned char>* out, std::string* err, const std::string& p, void*) {
+  if (!fs::path(p).is_absolute()) {
+    if (err) *err += "refusing relative path '" + p + "'\n";
+    return false;
+  }
+  std::ifstream f(p, std::ios::binary);
+  if (!f) {
+    if (err) *err += "cannot open '" + p + "'\n";
+    return false;
+  }
+  out->assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  return true;
+}
+bool fs_write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+  if (err) *err += "writing is disabled\n";
+  return false;
+}
+bool no_image_loader(tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                     const unsigned char*, int, void*) {
+  return true;  // images are never decoded
+}
+
+bool is_data_uri(const std::string& uri) { return uri.rfind("data:", 0) == 0; }
+
+// Size in bytes of a base64 data URI payload (without decoding it).
+int64_t data_uri_size(const std::string& uri) {
+  size_t comma = uri.find(',');
+  if (comma == std::string::npos || uri.find(";base64", 0) > comma) return -1;
+  size_t n = uri.size() - comma - 1;
+  size_t pad = 0;
+  if (n >= 1 && uri[uri.size() - 1] == '=') ++pad;
+  if (n >= 2 && uri[uri.size() - 2] == '=') ++pad;
+  return int64_t(n / 4 * 3) - int64_t(pad);
+}
+
+std::string percent_decode(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit((unsigned char)s[i + 1]) &&
+        std::isxdigit((unsigned char)s[i + 2])) {
+      out.push_back(char(std::stoi(s.substr(i + 1, 2), nullptr, 16)));
+      i += 2;
+    } else {
+      out.push_back(s[i]);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Document load_document(const std::string& path) {
+  Document doc;
+  doc.path = path;
+  std::error_code ec;
+  fs::path abs = fs::absolute(path, ec);
+  if (ec || !fs::is_regular_file(abs, ec))
+    throw Error(ExitCode::kInputIo, "cannot open '" + path + "': no such file");
+  doc.base_dir = abs.parent_path().string();
+  const uint64_t file_size = fs::file_size(abs, ec);
+  if (ec) throw Error(ExitCode::kInputIo, "cannot read size of '" + path + "'");
+  if (file_size >= k4GiB)
+    fail_invalid("file is " + std::to_string(file_size) +
+                 " bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
+  const std::string bytes = read_whole(abs);
+  if (bytes.size() != file_size) throw Error(ExitCode::kInputIo, "short read of '" + path + "'");
+
+  // Container: .glb (by magic, whatever the extension) or JSON text.
+  std::string json_text;
+  const char* bin = nullptr;
+  size_t bin_size = 0;
+  const bool is_glb = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
+  if (is_glb) {
+    if (bytes.size() < 20) fail_invalid("truncated file: " + std::to_string(bytes.size()) + " bytes is too short for a .glb header");
+    const uint32_t version = read_u32(bytes, 4), length = read_u32(bytes, 8);
+    if (version != 2) fail_invalid(".glb container version " + std::to_string(version) + " is not supported (need 2)");
+    if (length > bytes.size())
+      fail_invalid("truncated file: .glb header declares " + std::to_string(length) + " bytes but the file has " +
+                   std::to_string(bytes.size()));
+    size_t off = 12;
+    int chunk = 0;
+    while (off < length) {
+      if (off + 8 > length) fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
+      const uint64_t clen = read_u32(bytes, off), ctype = read_u32(bytes, off + 4);
+      if (off + 8 + clen > length)
+        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " (" + std::to_string(clen) + " bytes at byte " +
+                     std::to_string(off + 8) + ") extends past the end of the data (" + std::to_string(length) + " bytes)");
+      if (chunk == 0 && ctype != kChunkJson) fail_invalid(".glb: the first chunk is not JSON");
+      if (chunk == 0) json_text.assign(bytes.data() + off + 8, clen);
+      if (chunk == 1 && ctype == kChunkBin) {
+        bin = bytes.data() + off + 8;
+        bin_size = clen;
+      }
+      off += 8 + ((clen + 3) & ~uint64_t(3));
+      ++chunk;
+    }
+    if (chunk == 0) fail_invalid(".glb has no JSON chunk");
+  } else {
+    json_text = bytes;
+  }
+
+  try {
+    doc.json = json::parse(json_text);
+  } catch (const json::parse_error& e) {
+    fail_invalid(std::string("invalid JSON (truncated file?) at byte ") + std::to_string(e.byte) + ": " + e.what());
+  }
+  if (!doc.json.is_object()) fail_invalid("/: the glTF document is not a JSON object");
+  const json& j = doc.json;
+  if (!j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") ||
+      !j["asset"]["version"].is_string() || j["asset"]["version"].get<std::string>().rfind("2.", 0) != 0)
+    fail_invalid("/asset/version: not a glTF 2.x file");
+
+  if (j.contains("extensionsRequired")) {
+    std::string unknown;
+    if (!j["extensionsRequired"].is_array()) fail_invalid("/extensionsRequired: not an array");
+    for (const auto& e : j["extensionsRequired"])
+      if (!e.is_string() || !known_extensions().count(e.get<std::string>()))
+        unknown += (unknown.empty() ? "" : ", ") + (e.is_string() ? e.get<std::string>() : e.dump());
+    if (!unknown.empty()) fail_invalid("/extensionsRequired: unsupported required extensions: " + unknown);
+  }
+
+  // Real sizes of the buffers' data, and which are meshopt fallback buffers (no data in the file).
+  std::vector<int64_t> sizes;
+  std::vector<int> fallback;
+  if (j.contains("buffers")) {
+    if (!j["buffers"].is_array()) fail_invalid("/buffers: not an array");
+    for (size_t i = 0; i < j["buffers"].size(); ++i) {
+      const json& b = j["buffers"][i];
+      const std::string ptr = "/buffers/" + std::to_string(i);
+      if (!b.is_object() || !b.contains("byteLength") || !b["byteLength"].is_number_unsigned())
+        fail_invalid(ptr + "/byteLength: missing or not a non-negative integer");
+      const uint64_t declared = b["byteLength"].get<uint64_t>();
+      const bool is_fallback = b.contains("extensions") && b["extensions"].is_object() &&
+                               b["extensions"].contains("EXT_meshopt_compression") &&
+                               b["extensions"]["EXT_meshopt_compression"].value("fallback", false);
+      if (b.contains("uri") && !b["uri"].is_string()) fail_invalid(ptr + "/uri: not a string");
+      const std::string uri = b.value("uri", std::string());
+      int64_t real = -1;
+      if (uri.empty()) {
+        if (is_fallback) {
+          fallback.push_back(int(i));
+          real = int64_t(declared);
+        } else if (is_glb && i == 0) {
+          if (!bin) fail_invalid(ptr + ": refers to the .glb BIN chunk, but the file has none");
+          real = int64_t(bin_size);
+        } else {
+          fail_invalid(ptr + ": no uri (only the first buffer of a .glb may omit it)");
+        }
+      } else if (is_data_uri(uri)) {
+        real = data_uri_size(uri);
+        if (real < 0) fail_invalid(ptr + "/uri: data URI is not base64");
+      } else {
+        fs::path p = fs::path(doc.base_dir) / percent_decode(uri);
+        if (!fs::is_regular_file(p, ec))
+          throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri + "' (looked in " + doc.base_dir + ")");
+        real = int64_t(fs::file_size(p, ec));
+      }
+      if (real >= 0 && uint64_t(real) < declared)
+        fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but only " + std::to_string(real) +
+                     " bytes are there (truncated file?)");
+      sizes.push_back(int64_t(declared));
+    }
+  }
+  validate_json(j, sizes);
+
+  // tinygltf does not know EXT_meshopt_compression: give each fallback buffer a 1-byte placeholder,
+  // decode the compressed views into it afterwards.
+  // Images are never decoded and a missing texture is not an error: tinygltf does not see them.
+  json patched = j;
+  patched.erase("images");
+  patched.erase("textures");
+  patched.erase("samplers");
+  for (int i : fallback) {
+    patched["buffers"][i]["uri"] = "data:application/octet-stream;base64,AA==";
+    patched["buffers"][i]["byteLength"] = 1;
+  }
+
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(no_image_loader, nullptr);
+  loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, nullptr});
+  std::string err, warn;
+  bool ok;
+  const std::string text = patched.dump();
+  if (is_glb) {
+    // Re-assemble the container with the (possibly patched) JSON and the original BIN chunk.
+    std::string glb(12, '\0');
+    auto put = [&](uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+    std::string jt = text;
+    while (jt.size() % 4) jt.push_back(' ');
+    put(uint32_t(jt.size()));
+    put(kChunkJson);
+    glb += jt;
+    if (bin) {
+      put(uint32_t((bin_size + 3) & ~size_t(3)));
+      put(kChunkBin);
+      glb.append(bin, bin_size);
+      while (glb.size() % 4) glb.push_back('\0');
+    }
+    if (glb.size() >= k4GiB) fail_invalid("re-assembled .glb would exceed 4 GiB");
+    uint32_t hdr[3] = {kGlbMagic, 2, uint32_t(glb.size())};
+    std::memcpy(glb.data(), hdr, 12);
+    ok = loader.LoadBinaryFromMemory(&doc.model, &err, &warn, reinterpret_cast<const unsigned char*>(glb.data()),
+                                     unsigned(glb.size()), doc.base_dir, tinygltf::REQUIRE_VERSION);
+  } else {
+    ok = loader.LoadASCIIFromString(&doc.model, &err, &warn, text.data(), unsigned(text.size()), doc.base_dir,
+                                    tinygltf::REQUIRE_VERSION);
+  }
+  if (!ok) {
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    fail_invalid("glTF parse failed: " + err);
+  }
+  for (int i : fallback) doc.model.buffers[size_t(i)].data.assign(j["buffers"][i]["byteLength"].get<size_t>(), 0);
+  decode_meshopt(doc);
+  return doc;
+}
+
+}  // namespace rtp::gltf

@@ -1,0 +1,77 @@
+#pragma once
+// The in-memory Scene every later stage consumes: meshes in local space, instances with affine
+// transforms, cameras, and a source map back to the glTF file.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+
+namespace rtp {
+
+inline constexpr uint32_t kNoIndex = 0xffffffffu;
+
+// One glTF primitive that contributed triangles to a Mesh.
+struct SourcePrimitive {
+  uint32_t gltf_mesh = kNoIndex;       // index into /meshes
+  uint32_t gltf_primitive = kNoIndex;  // index into /meshes/M/primitives
+};
+
+// Where a triangle came from: Mesh::primitives[primitive], triangle number `triangle` of that
+// primitive (after strip/fan expansion, counting every triangle the primitive defines).
+struct TriangleSource {
+  uint32_t primitive = 0;
+  uint32_t triangle = 0;
+};
+
+// A triangle mesh in its own local space. One glTF mesh (all its triangle primitives) = one Mesh,
+// shared by every node that uses it.
+struct Mesh {
+  std::string name;
+  std::vector<Vec3f> positions;
+  std::vector<uint32_t> indices;             // 3 per triangle, all < positions.size()
+  std::vector<SourcePrimitive> primitives;   // the glTF primitives this mesh was built from
+  std::vector<TriangleSource> source;        // one per triangle
+
+  uint64_t triangle_count() const { return indices.size() / 3; }
+  Aabb local_bounds() const;
+};
+
+// A placement of a mesh in the world.
+struct Instance {
+  uint32_t mesh = 0;
+  Affine3x4 transform;            // local -> world (node hierarchy composed in double, then stored)
+  bool mirrored = false;          // det(transform) < 0: triangle winding flips
+  uint32_t node = kNoIndex;       // glTF node index
+  uint32_t gpu_instance = kNoIndex;  // index within the node's EXT_mesh_gpu_instancing, or kNoIndex
+};
+
+struct Camera {
+  enum class Type { kPerspective, kOrthographic };
+  std::string name;
+  uint32_t node = kNoIndex;
+  uint32_t gltf_camera = kNoIndex;
+  Type type = Type::kPerspective;
+  double yfov = 0, aspect_ratio = 0, znear = 0, zfar = 0;  // perspective (aspect/zfar 0 = unset)
+  double xmag = 0, ymag = 0;                               // orthographic (znear/zfar shared)
+  Affine3x4 world;  // camera -> world, rotation + translation only (scale stripped)
+};
+
+struct Scene {
+  std::string source_path;
+  int gltf_scene = -1;
+  std::vector<Mesh> meshes;
+  std::vector<Instance> instances;
+  std::vector<Camera> cameras;
+  std::vector<std::string> warnings;
+  Aabb bounds;  // world bounds of every instanced triangle (with instance transforms)
+
+  uint64_t unique_triangles() const;     // Σ over meshes
+  uint64_t instanced_triangles() const;  // Σ over instances of their mesh's triangles
+};
+
+// Exact world bounds of all instances: for every instance, the extreme vertices along each world axis
+// of the stored transform (branch and bound over a per-mesh point tree, not a transformed box).
+Aabb compute_world_bounds(const Scene& scene);
+
+}  // namespace rtp
