@@ -35,7 +35,7 @@ bool check_ref(const json& obj, const char* key, size_t n, const std::string& pt
   const int64_t i = v.get<int64_t>();
   if (i < 0 || uint64_t(i) >= n)
     fail_invalid(ptr + "/" + key + ": " + target + " " + to_string(i) + " out of range (" + to_string(n) + " " +
-                 target + "s)");
+                 target + (std::string(target) == "mesh" ? "es)" : "s)"));
   return true;
 }
 

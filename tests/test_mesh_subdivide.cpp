@@ -1,0 +1,274 @@
+// subdivide_uniform / subdivide_midpoint / subdivide_to_length.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+#include "core/error.h"
+#include "mesh/mesh.h"
+#include "mesh/shapes.h"
+
+#if __has_include("scene/import.h") && !defined(RTP_MESH_TESTS_NO_IMPORT)
+#include "scene/import.h"
+#endif
+
+namespace rtp {
+namespace {
+
+uint64_t pow4(int n) { return uint64_t(1) << (2 * n); }
+
+void expect_finite_within(const Mesh& m, const Aabb& box) {
+  const double tol = 1e-5;
+  for (const Vec3f& p : m.positions) {
+    ASSERT_TRUE(is_finite(p));
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_GE(p[a], box.lo[a] - tol);
+      EXPECT_LE(p[a], box.hi[a] + tol);
+    }
+  }
+  for (uint32_t i : m.indices) ASSERT_LT(i, m.positions.size());
+}
+
+Aabb bounds_of(const Mesh& m) {
+  Aabb b;
+  for (const Vec3f& p : m.positions) b.grow(to_d(p));
+  return b;
+}
+
+// Children of parent i are the 4^n consecutive triangles [i * 4^n, (i + 1) * 4^n) and carry its entry.
+void expect_source_follows_parents(const Mesh& child, const Mesh& parent, int n) {
+  ASSERT_EQ(child.source.size(), parent.source.size() * pow4(n));
+  for (size_t t = 0; t < child.source.size(); ++t) {
+    const TriangleSource& p = parent.source[t / pow4(n)];
+    EXPECT_EQ(child.source[t].primitive, p.primitive);
+    ASSERT_EQ(child.source[t].triangle, p.triangle) << "child " << t;
+  }
+}
+
+TEST(MeshSubdivide, LoopIcosphereGivesFourToTheN) {
+  const Mesh base = make_icosphere(1);
+  for (int n = 1; n <= 3; ++n) {
+    Mesh m = base;
+    UniformSubdivideResult r = subdivide_uniform(m, n);
+    EXPECT_FALSE(r.used_fallback);
+    EXPECT_EQ(m.triangle_count(), pow4(n) * base.triangle_count());
+    // Closed genus-0 triangle mesh: V = F / 2 + 2.
+    EXPECT_EQ(m.positions.size(), m.triangle_count() / 2 + 2);
+    expect_finite_within(m, bounds_of(base));
+    expect_source_follows_parents(m, base, n);
+    // Loop shrinks towards the limit surface, but not by much on a fine sphere.
+    for (const Vec3f& p : m.positions) EXPECT_GT(length(to_d(p)), 0.9);
+  }
+}
+
+TEST(MeshSubdivide, LoopMeshWithBoundaryGivesFourToTheN) {
+  const Mesh base = make_grid(4, 3);
+  for (int n = 1; n <= 3; ++n) {
+    Mesh m = base;
+    subdivide_uniform(m, n);
+    EXPECT_EQ(m.triangle_count(), pow4(n) * base.triangle_count());
+    expect_finite_within(m, bounds_of(base));
+    expect_source_follows_parents(m, base, n);
+    for (const Vec3f& p : m.positions) EXPECT_EQ(p.z, 0.0f);
+  }
+}
+
+TEST(MeshSubdivide, ChildTrianglesLieInTheirParent) {
+  // A regular planar grid: Loop reproduces the linear parametrisation away from the grid's corners,
+  // so each child lies inside its parent and keeps its orientation (+z normals).
+  const Mesh base = make_grid(6, 6);
+  Mesh m = base;
+  subdivide_uniform(m, 1);
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const size_t parent = t / 4;
+    Vec3d c{0, 0, 0}, pv[3], cv[3];
+    bool touches_corner = false;
+    for (int k = 0; k < 3; ++k) {
+      pv[k] = to_d(base.positions[base.indices[3 * parent + k]]);
+      cv[k] = to_d(m.positions[m.indices[3 * t + k]]);
+      c = c + cv[k] * (1.0 / 3.0);
+      touches_corner |= (pv[k].x == 0 || pv[k].x == 6) && (pv[k].y == 0 || pv[k].y == 6);
+    }
+    EXPECT_GT(cross(cv[1] - cv[0], cv[2] - cv[0]).z, 0) << "child " << t;
+    if (touches_corner) continue;
+    const double area = cross(pv[1] - pv[0], pv[2] - pv[0]).z;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d& a = pv[(k + 1) % 3];
+      const Vec3d& b = pv[(k + 2) % 3];
+      EXPECT_GT(cross(b - a, c - a).z / area, 0.01) << "child " << t << " outside parent " << parent;
+    }
+  }
+}
+
+TEST(MeshSubdivide, LevelZeroIsNoOpAndNegativeThrows) {
+  Mesh m = make_cube();
+  const Mesh orig = m;
+  subdivide_uniform(m, 0);
+  EXPECT_EQ(m.positions, orig.positions);
+  EXPECT_EQ(m.indices, orig.indices);
+  EXPECT_THROW(subdivide_uniform(m, -1), Error);
+}
+
+TEST(MeshSubdivide, NonManifoldInputDoesNotCrash) {
+  Mesh fin;
+  fin.primitives = {SourcePrimitive{}};
+  fin.positions = {{0, 0, 0}, {1, 0, 0}, {0.5f, 1, 0}, {0.5f, -1, 0}, {0.5f, 0, 1}};
+  fin.indices = {0, 1, 2, 1, 0, 3, 0, 1, 4};
+  fin.source = {{0, 0}, {0, 1}, {0, 2}};
+  Mesh dup = make_tetrahedron();
+  dup.indices.insert(dup.indices.end(), {1, 3, 2});
+  dup.source.push_back({0, 4});
+  for (const Mesh& base : {fin, dup}) {
+    for (int n = 1; n <= 2; ++n) {
+      Mesh m = base;
+      subdivide_uniform(m, n);
+      EXPECT_EQ(m.triangle_count(), pow4(n) * base.triangle_count());
+      expect_finite_within(m, bounds_of(base));
+      expect_source_follows_parents(m, base, n);
+    }
+  }
+}
+
+TEST(MeshSubdivide, MidpointSplitKeepsPositionsAndSharesEdges) {
+  const Mesh base = make_cube();
+  Mesh m = base;
+  subdivide_midpoint(m, 2);
+  EXPECT_EQ(m.triangle_count(), 16 * base.triangle_count());
+  // Closed genus 0 stays closed: V = F / 2 + 2, and the original corners are untouched.
+  EXPECT_EQ(m.positions.size(), m.triangle_count() / 2 + 2);
+  for (size_t v = 0; v < base.positions.size(); ++v) EXPECT_EQ(m.positions[v], base.positions[v]);
+  expect_source_follows_parents(m, base, 2);
+}
+
+Scene two_instance_scene(float scale_b) {
+  Scene s;
+  s.meshes.push_back(make_icosphere(0));  // edge ~1.05
+  Instance a, b;
+  a.mesh = b.mesh = 0;
+  for (int i = 0; i < 3; ++i) b.transform(i, i) = scale_b;
+  b.transform(0, 3) = 10;
+  s.instances = {a, b};
+  return s;
+}
+
+TEST(MeshSubdivide, AdaptiveLargestInstanceScaleDrivesTheLevel) {
+  const double target = 0.5;
+  Scene s = two_instance_scene(3);
+  const Mesh base = s.meshes[0];
+  SubdivideReport r = subdivide_to_length(s, target);
+  ASSERT_EQ(r.meshes.size(), 1u);
+  const MeshSubdivideReport& mr = r.meshes[0];
+  EXPECT_NEAR(mr.max_scale, 3.0, 1e-12);
+  EXPECT_FALSE(mr.hit_cap);
+  ASSERT_GE(mr.levels, 1);
+  EXPECT_NEAR(mr.longest_world_edge_before, 3 * longest_edge(base), 1e-9);
+  EXPECT_LT(mr.longest_world_edge_after, target);
+  EXPECT_LT(longest_edge(s.meshes[0]) * 3, target);
+  // Applied once: 4^L x base, not per instance.
+  EXPECT_EQ(s.meshes[0].triangle_count(), pow4(mr.levels) * base.triangle_count());
+  EXPECT_EQ(mr.triangles_after, s.meshes[0].triangle_count());
+  EXPECT_EQ(r.triangles_after, s.meshes[0].triangle_count());
+  EXPECT_EQ(s.instances.size(), 2u);
+  // Smallest such level: one level fewer is not enough.
+  Mesh fewer = base;
+  subdivide_uniform(fewer, mr.levels - 1);
+  EXPECT_GE(longest_edge(fewer) * 3, target);
+  // Same triangles, in the same order, as uniform subdivision in one go, up to float rounding between
+  // levels (vertex numbering may differ: OpenSubdiv numbers edges differently per base mesh).
+  Mesh once = base;
+  subdivide_uniform(once, mr.levels);
+  ASSERT_EQ(once.positions.size(), s.meshes[0].positions.size());
+  ASSERT_EQ(once.indices.size(), s.meshes[0].indices.size());
+  for (size_t i = 0; i < once.indices.size(); ++i)
+    ASSERT_NEAR(length(to_d(once.positions[once.indices[i]]) -
+                       to_d(s.meshes[0].positions[s.meshes[0].indices[i]])),
+                0, 1e-6)
+        << "corner " << i;
+
+  // Only the scale-1 instance: fewer levels.
+  Scene small = two_instance_scene(1);
+  SubdivideReport r1 = subdivide_to_length(small, target);
+  EXPECT_LT(r1.meshes[0].levels, mr.levels);
+  EXPECT_LT(longest_edge(small.meshes[0]), target);
+}
+
+TEST(MeshSubdivide, AdaptiveLeavesShortAndUninstancedMeshesUntouched) {
+  Scene s = two_instance_scene(3);
+  Mesh tiny = make_icosphere(1);
+  for (Vec3f& p : tiny.positions) p = {p.x * 0.01f, p.y * 0.01f, p.z * 0.01f};
+  s.meshes.push_back(tiny);              // 1: instanced, already fine
+  s.meshes.push_back(make_icosphere(0)); // 2: no instance
+  Instance i;
+  i.mesh = 1;
+  s.instances.push_back(i);
+  const Scene orig = s;
+  SubdivideReport r = subdivide_to_length(s, 0.5);
+  ASSERT_EQ(r.meshes.size(), 3u);
+  EXPECT_GT(r.meshes[0].levels, 0);
+  for (uint32_t m : {1u, 2u}) {
+    EXPECT_EQ(r.meshes[m].levels, 0) << m;
+    EXPECT_EQ(s.meshes[m].positions, orig.meshes[m].positions) << m;
+    EXPECT_EQ(s.meshes[m].indices, orig.meshes[m].indices) << m;
+    ASSERT_EQ(s.meshes[m].source.size(), orig.meshes[m].source.size());
+    for (size_t t = 0; t < s.meshes[m].source.size(); ++t)
+      EXPECT_EQ(s.meshes[m].source[t].triangle, orig.meshes[m].source[t].triangle);
+  }
+  EXPECT_TRUE(r.meshes[1].instanced);
+  EXPECT_FALSE(r.meshes[2].instanced);
+  EXPECT_EQ(r.meshes_subdivided, 1u);
+  EXPECT_EQ(r.triangles_before, 20u + 80u + 20u);
+  EXPECT_EQ(r.triangles_after, s.meshes[0].triangle_count() + 80u + 20u);
+}
+
+TEST(MeshSubdivide, AdaptiveReportsTheLevelCap) {
+  Scene s = two_instance_scene(3);
+  SubdivideReport r = subdivide_to_length(s, 1e-3, 2);
+  EXPECT_EQ(r.meshes[0].levels, 2);
+  EXPECT_TRUE(r.meshes[0].hit_cap);
+  EXPECT_EQ(r.meshes_at_cap, 1u);
+  EXPECT_EQ(s.meshes[0].triangle_count(), 16u * 20u);
+  EXPECT_THROW(subdivide_to_length(s, 0.0), Error);
+}
+
+TEST(MeshSubdivide, AdaptiveIsDeterministic) {
+  auto build = [] {
+    Scene s;
+    for (int k = 0; k < 8; ++k) {
+      s.meshes.push_back(k % 2 ? make_icosphere(k / 4) : make_grid(k + 1, 2));
+      Instance i;
+      i.mesh = uint32_t(k);
+      for (int a = 0; a < 3; ++a) i.transform(a, a) = float(1 + k % 3);
+      s.instances.push_back(i);
+    }
+    return s;
+  };
+  Scene a = build(), b = build();
+  subdivide_to_length(a, 0.3);
+  subdivide_to_length(b, 0.3);
+  for (size_t m = 0; m < a.meshes.size(); ++m) {
+    EXPECT_EQ(a.meshes[m].positions, b.meshes[m].positions);
+    EXPECT_EQ(a.meshes[m].indices, b.meshes[m].indices);
+  }
+}
+
+#if __has_include("scene/import.h") && !defined(RTP_MESH_TESTS_NO_IMPORT)
+TEST(MeshSubdivide, CleanAndSubdivideSuzanne) {
+  const std::filesystem::path path = "/work/shared/assets/khronos/Suzanne/glTF/Suzanne.gltf";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "sample not present: " << path;
+  Scene s = import_gltf(path.string());
+  ASSERT_FALSE(s.meshes.empty());
+  Mesh m = s.meshes[0];
+  const uint64_t before = m.triangle_count();
+  CleanReport cr = clean_mesh(m, {.weld_eps = 0});
+  EXPECT_EQ(m.triangle_count() + cr.degenerate_removed + cr.nonfinite_removed, before);
+  const Aabb box = bounds_of(m);
+  const uint64_t cleaned = m.triangle_count();
+  subdivide_uniform(m, 1);
+  EXPECT_EQ(m.triangle_count(), 4 * cleaned);
+  expect_finite_within(m, box);
+}
+#endif
+
+}  // namespace
+}  // namespace rtp

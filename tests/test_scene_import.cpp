@@ -1,0 +1,205 @@
+// The importer on real files and on fabricated files for every supported glTF feature.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "gltf_builder.h"
+#include "scene/import.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+using Tri = std::array<Vec3d, 3>;
+
+std::vector<Tri> world_triangles(const Scene& s) {
+  std::vector<Tri> out;
+  for (const Instance& in : s.instances) {
+    const Mesh& m = s.meshes[in.mesh];
+    for (size_t t = 0; t < m.triangle_count(); ++t) {
+      Tri tri;
+      for (int k = 0; k < 3; ++k) tri[size_t(k)] = in.transform.apply(to_d(m.positions[m.indices[3 * t + size_t(k)]]));
+      out.push_back(tri);
+    }
+  }
+  return out;
+}
+
+double dist_inf(const Vec3d& a, const Vec3d& b) {
+  return std::max({std::abs(a.x - b.x), std::abs(a.y - b.y), std::abs(a.z - b.z)});
+}
+
+// Every triangle of `a` has its own partner in `b` with all three vertices (same winding, any starting
+// vertex) within `tol`; returns the number of triangles without a partner.
+size_t unmatched(const std::vector<Tri>& a, const std::vector<Tri>& b, double tol) {
+  const double cell = tol > 0 ? 4 * tol : 1e-4;  // a centroid moves by at most tol
+  auto key = [&](const Tri& t) {
+    const Vec3d c = (t[0] + t[1] + t[2]) * (1.0 / 3.0);
+    return std::array<int64_t, 3>{int64_t(std::floor(c.x / cell)), int64_t(std::floor(c.y / cell)), int64_t(std::floor(c.z / cell))};
+  };
+  std::map<std::array<int64_t, 3>, std::vector<size_t>> grid;
+  for (size_t i = 0; i < b.size(); ++i) grid[key(b[i])].push_back(i);
+  std::vector<bool> used(b.size(), false);
+  size_t missing = 0;
+  for (const Tri& t : a) {
+    const auto k = key(t);
+    bool found = false;
+    double best_d = std::numeric_limits<double>::infinity();
+    size_t best = 0;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          auto it = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
+          if (it == grid.end()) continue;
+          for (size_t j : it->second) {
+            if (used[j]) continue;
+            for (int r = 0; r < 3; ++r) {
+              const double d = std::max({dist_inf(t[0], b[j][size_t(r)]), dist_inf(t[1], b[j][size_t((r + 1) % 3)]),
+                                         dist_inf(t[2], b[j][size_t((r + 2) % 3)])});
+              if (d < best_d) { best_d = d; best = j; }
+            }
+          }
+        }
+    if (best_d <= tol) { used[best] = true; found = true; }
+    missing += !found;
+  }
+  return missing;
+}
+
+// Quantization step of a `bits`-bit grid over the scene's largest extent.
+double step(const Scene& s, int bits) {
+  const Vec3d e = s.bounds.extent();
+  return std::max({e.x, e.y, e.z}) / double((1 << bits) - 1);
+}
+
+TEST(ImportReal, LanternFloatQuantizedDracoAgree) {
+  const fs::path dir = source_dir() / "samples/khronos/Lantern";
+  const Scene f = import_gltf((dir / "glTF/Lantern.gltf").string());
+  const Scene q = import_gltf((dir / "glTF-Quantized/Lantern.gltf").string());
+  const Scene d = import_gltf((dir / "glTF-Draco/Lantern.gltf").string());
+  ASSERT_EQ(f.instanced_triangles(), 5394u);
+  ASSERT_EQ(q.instanced_triangles(), f.instanced_triangles());
+  ASSERT_EQ(d.instanced_triangles(), f.instanced_triangles());
+  const auto tf = world_triangles(f);
+  // The quantized file stores 14-bit positions (uint16 up to 16383 under one node scale); the Draco
+  // file was encoded with 11 position bits (its accessor bounds differ from the float file's by up to
+  // one 11-bit step). Each must match the float file within its own quantization step.
+  const double tol = step(f, 14);
+  EXPECT_EQ(unmatched(tf, world_triangles(q), tol), 0u);
+  EXPECT_EQ(unmatched(tf, world_triangles(d), step(f, 11)), 0u);
+  EXPECT_GT(unmatched(tf, world_triangles(d), tol), 800u);  // Draco really is coarser than 14 bits
+  // The test has teeth: a shift of 3 steps must be caught.
+  auto shifted = world_triangles(q);
+  for (auto& t : shifted) t[1].y += 3 * tol;
+  EXPECT_EQ(unmatched(tf, shifted, tol), tf.size());
+}
+
+TEST(ImportReal, FlightHelmetFloatAndMeshoptAgree) {
+  const fs::path dir = source_dir() / "samples/khronos/FlightHelmet";
+  const Scene f = import_gltf((dir / "glTF/FlightHelmet.gltf").string());
+  const Scene m = import_gltf((dir / "FlightHelmet-meshopt.glb").string());
+  ASSERT_EQ(f.instanced_triangles(), 94722u);
+  ASSERT_EQ(m.instanced_triangles(), f.instanced_triangles());
+  // meshopt's vertex codec is lossless for float positions: exact equality.
+  EXPECT_EQ(unmatched(world_triangles(f), world_triangles(m), 0.0), 0u);
+}
+
+// Independent recomputation of node world transforms from the raw JSON (simple recursion, doubles).
+void walk_json(const nlohmann::json& nodes, int n, const std::array<double, 16>& parent,
+               std::vector<std::pair<int, std::array<double, 16>>>& out) {
+  const nlohmann::json& node = nodes[size_t(n)];
+  std::array<double, 16> local{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};  // column-major
+  if (node.contains("matrix")) {
+    for (int i = 0; i < 16; ++i) local[size_t(i)] = node["matrix"][size_t(i)].get<double>();
+  } else {
+    const auto t = node.value("translation", std::vector<double>{0, 0, 0});
+    const auto q = node.value("rotation", std::vector<double>{0, 0, 0, 1});
+    const auto s = node.value("scale", std::vector<double>{1, 1, 1});
+    const double x = q[0], y = q[1], z = q[2], w = q[3];
+    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
+                         2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                         2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};  // column-major
+    for (int c = 0; c < 3; ++c)
+      for (int rr = 0; rr < 3; ++rr) local[size_t(c * 4 + rr)] = r[c * 3 + rr] * s[size_t(c)];
+    for (int rr = 0; rr < 3; ++rr) local[size_t(12 + rr)] = t[size_t(rr)];
+  }
+  std::array<double, 16> g{};
+  for (int c = 0; c < 4; ++c)
+    for (int rr = 0; rr < 4; ++rr)
+      for (int k = 0; k < 4; ++k) g[size_t(c * 4 + rr)] += parent[size_t(k * 4 + rr)] * local[size_t(c * 4 + k)];
+  if (node.contains("mesh")) out.push_back({n, g});
+  for (const auto& c : node.value("children", std::vector<int>{})) walk_json(nodes, c, g, out);
+}
+
+nlohmann::json glb_json(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  uint32_t len;
+  std::memcpy(&len, s.data() + 12, 4);
+  return nlohmann::json::parse(s.substr(20, len));
+}
+
+TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
+  const fs::path p = shared_assets() / "scenes/gallery.glb";
+  if (!fs::exists(p)) GTEST_SKIP() << "../shared/assets is absent: " << p;
+  const Scene s = import_gltf(p.string());
+  const nlohmann::json j = glb_json(p);
+  std::vector<std::pair<int, std::array<double, 16>>> expect;
+  for (int root : j["scenes"][j.value("scene", 0)]["nodes"])
+    walk_json(j["nodes"], root, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, expect);
+  ASSERT_EQ(s.instances.size(), expect.size());
+  size_t mirrored = 0;
+  for (size_t i = 0; i < expect.size(); ++i) {
+    const auto& [node, g] = expect[i];
+    const Instance& in = s.instances[i];
+    EXPECT_EQ(int(in.node), node);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) EXPECT_NEAR(in.transform(r, c), g[size_t(c * 4 + r)], 1e-5 * (1 + std::abs(g[size_t(c * 4 + r)])));
+    const double det = g[0] * (g[5] * g[10] - g[9] * g[6]) - g[4] * (g[1] * g[10] - g[9] * g[2]) + g[8] * (g[1] * g[6] - g[5] * g[2]);
+    EXPECT_EQ(in.mirrored, det < 0) << "instance " << i;
+    mirrored += in.mirrored;
+    EXPECT_EQ(s.meshes[in.mesh].primitives[0].gltf_mesh, j["nodes"][size_t(node)]["mesh"].get<uint32_t>());
+  }
+  EXPECT_GE(mirrored, 1u);
+  // Meshes are shared, not copied: one Mesh per glTF mesh used.
+  std::set<int> used;
+  for (const auto& [node, g] : expect) used.insert(j["nodes"][size_t(node)]["mesh"].get<int>());
+  EXPECT_EQ(s.meshes.size(), used.size());
+  // Bounds equal a brute-force transform of every vertex of every instance.
+  Aabb brute;
+  for (const auto& t : world_triangles(s))
+    for (const auto& v : t) brute.grow(v);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(s.bounds.lo[k], brute.lo[k]);
+    EXPECT_EQ(s.bounds.hi[k], brute.hi[k]);
+  }
+  ASSERT_EQ(s.cameras.size(), 1u);
+}
+
+TEST(ImportReal, Forest2kInstancedTriangleCount) {
+  const fs::path p = shared_assets() / "scenes/forest-2k.glb";
+  if (!fs::exists(p)) GTEST_SKIP() << "../shared/assets is absent: " << p;
+  const Scene s = import_gltf(p.string());
+  const nlohmann::json j = glb_json(p);
+  // Σ over instancing nodes of (instance count × triangles of the node's mesh), from the raw JSON.
+  uint64_t expected = 0, instances = 0;
+  for (const auto& n : j["nodes"]) {
+    if (!n.contains("mesh")) continue;
+    uint64_t tris = 0;
+    for (const auto& pr : j["meshes"][n["mesh"].get<size_t>()]["primitives"])
+      tris += j["accessors"][pr["indices"].get<size_t>()]["count"].get<uint64_t>() / 3;
+    uint64_t count = 1;
+    if (n.contains("extensions") && n["extensions"].contains("EXT_mesh_gpu_instancing"))
+      for (const auto& [k, a] : n["extensions"]["EXT_mesh_gpu_instancing"]["attributes"].items())
+        count = j["accessors"][a.get<size_t>()]["count"].get<uint64_t>();
+    expected += count * tris;
+    instances += count;
+  }
+  EXPECT_EQ(s.instances.size(), instances);
+  EXPECT_EQ(s.instanced_triangles(), expected);
+  EXPECT_GT(s.instanced_triangles(), 100 * s.unique_triangles() / 10);
+}
+
+}  // namespace
+}  // namespace rtp::test
