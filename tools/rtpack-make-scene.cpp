@@ -1,0 +1,538 @@
+// rtpack-make-scene: deterministic generator of test scenes (.glb) built from real sample meshes.
+//
+//   rtpack-make-scene gallery -o gallery.glb [--count 12] [--spacing 2]
+//   rtpack-make-scene forest  -o forest.glb  [--count 3000] [--seed 1] [--refine 1]
+//   rtpack-make-scene far     -o far.glb     [--base gallery|forest]
+//
+// Source meshes: every triangle rtp::Mesh that rtp::import_gltf returns for each --mesh file (default:
+// the Suzanne, Lantern and BoomBox samples = 5 meshes, 15366 triangles), written as-is (local positions,
+// uint32 indices) as one glTF mesh with one primitive each. Nodes carry a uniform scale `norm` that
+// brings each mesh's largest local extent to 1, so meshes of very different sizes sit on one grid.
+//
+// gallery  node instancing: --count mesh nodes (item i uses mesh i % M), hierarchy
+//          root > platform (TRS: yaw + uniform scale 1.5) > row (TRS, or matrix with a 180 degree yaw)
+//          > item (TRS for even i, matrix for odd i), exactly one mirrored item (i = min(2, count-1),
+//          scale x negative), a perspective and an orthographic camera (children of root).
+// forest   EXT_mesh_gpu_instancing: one node per mesh (node scale = norm), --count instances in total
+//          (mesh m gets instances k with k % M == m) on a jittered grid with random yaw and scale
+//          0.5..1.5 from std::mt19937_64(--seed). TRANSLATION/SCALE are float VEC3, ROTATION float VEC4
+//          except on the second mesh's node where it is normalized SHORT. One perspective camera.
+// far      gallery (or --base forest) with the root translated to (3e6, 1.5e6, -3e6).
+//
+// --refine L splits every source triangle 1-to-4 at its edge midpoints, L times (edges shared by index
+// share the midpoint vertex). Default 1 for forest content, 0 otherwise: with the default meshes
+// 15366 -> 61464 triangles, so `forest --count 1000000` gives 1e6/5 * 61464 = 1.23e10 instanced
+// triangles.
+//
+// The output is a pure function of the arguments and the source meshes (same arguments = same bytes).
+// It is written to OUT.tmp and renamed, so no partial file is ever left at OUT.
+// Exit codes (core/error.h): 1 usage, 2 input unreadable, 3 input invalid, 4 output unwritable.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/error.h"
+#include "core/math.h"
+#include "scene/import.h"
+
+namespace {
+
+using nlohmann::json;
+using rtp::Error;
+using rtp::ExitCode;
+namespace fs = std::filesystem;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kFloat = 5126, kUnsignedInt = 5125, kShort = 5122;
+constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+constexpr const char* kInstancing = "EXT_mesh_gpu_instancing";
+constexpr std::array<double, 3> kFarOffset = {3e6, 1.5e6, -3e6};
+constexpr uint64_t kMaxUniqueTriangles = uint64_t(1) << 27;  // after --refine: 1.5 GiB of indices
+const std::vector<std::string> kDefaultMeshes = {
+    "samples/khronos/Suzanne/glTF/Suzanne.gltf",
+    "samples/khronos/Lantern/glTF/Lantern.gltf",
+    "samples/khronos/BoomBox/glTF/BoomBox.gltf",
+};
+
+using D3 = std::array<double, 3>;
+using D4 = std::array<double, 4>;
+
+struct Options {
+  std::string kind, output, base = "gallery";
+  int64_t count = -1;  // -1: 12 for gallery content, 3000 for forest content
+  uint64_t seed = 1;
+  double spacing = 2.0;
+  int refine = -1;     // -1: 1 for forest content, 0 otherwise
+  std::vector<std::string> meshes;
+  bool forest_content() const { return kind == "forest" || (kind == "far" && base == "forest"); }
+};
+
+struct SourceMesh {
+  std::string name;
+  std::vector<rtp::Vec3f> positions;
+  std::vector<uint32_t> indices;
+  rtp::Vec3f lo, hi;  // exact float bounds of the positions
+  double norm = 1;    // uniform scale bringing the largest extent to 1
+  uint64_t triangles() const { return indices.size() / 3; }
+};
+
+struct Totals {
+  uint64_t instances = 0, instanced_triangles = 0;
+};
+
+// ---------------------------------------------------------------------------------------------------
+// Source meshes
+
+// Default sample paths are relative to the repository root: try the working directory, then the
+// directories above the executable (the build directory usually sits inside the repository).
+std::string resolve_default(const std::string& rel) {
+  if (fs::exists(rel)) return rel;
+  std::error_code ec;
+  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return rel;
+  for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
+    if (fs::exists(dir / rel, ec)) return (dir / rel).string();
+    if (dir == dir.root_path()) break;
+  }
+  return rel;
+}
+
+std::vector<SourceMesh> load_sources(const std::vector<std::string>& files) {
+  std::vector<SourceMesh> out;
+  for (const std::string& file : files) {
+    std::ifstream probe(file, std::ios::binary);
+    if (!probe) throw Error(ExitCode::kInputIo, "cannot open mesh source '" + file + "'");
+    probe.close();
+    rtp::Scene scene;
+    try {
+      scene = rtp::import_gltf(file);
+    } catch (const Error& e) {
+      throw Error(e.code(), "mesh source '" + file + "': " + e.what());
+    } catch (const std::exception& e) {
+      throw Error(ExitCode::kInputIo, "cannot read mesh source '" + file + "': " + e.what());
+    }
+    const size_t before = out.size();
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+      rtp::Mesh& m = scene.meshes[i];
+      if (m.triangle_count() == 0) continue;
+      SourceMesh s;
+      s.name = m.name.empty() ? fs::path(file).stem().string() + "_" + std::to_string(i) : m.name;
+      s.positions = std::move(m.positions);
+      s.indices = std::move(m.indices);
+      for (const rtp::Vec3f& p : s.positions)
+        if (!rtp::is_finite(p)) throw Error(ExitCode::kInputInvalid, file + ": mesh '" + s.name + "' has a non-finite position");
+      for (uint32_t v : s.indices)
+        if (v >= s.positions.size()) throw Error(ExitCode::kInputInvalid, file + ": mesh '" + s.name + "' has an index out of range");
+      out.push_back(std::move(s));
+    }
+    if (out.size() == before) throw Error(ExitCode::kInputInvalid, file + ": no mesh with triangles");
+  }
+  return out;
+}
+
+// One 1-to-4 midpoint split: (a,b,c) -> (a,ab,ca) (ab,b,bc) (ca,bc,c) (ab,bc,ca), winding kept.
+void refine_once(SourceMesh& m) {
+  std::unordered_map<uint64_t, uint32_t> midpoints;
+  midpoints.reserve(m.indices.size());
+  std::vector<uint32_t> out;
+  out.reserve(m.indices.size() * 4);
+  auto mid = [&](uint32_t a, uint32_t b) {
+    const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+    auto [it, inserted] = midpoints.try_emplace(key, uint32_t(m.positions.size()));
+    if (inserted) {
+      const rtp::Vec3f pa = m.positions[a], pb = m.positions[b];
+      m.positions.push_back({(pa.x + pb.x) * 0.5f, (pa.y + pb.y) * 0.5f, (pa.z + pb.z) * 0.5f});
+    }
+    return it->second;
+  };
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    const uint32_t a = m.indices[t], b = m.indices[t + 1], c = m.indices[t + 2];
+    const uint32_t ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+    out.insert(out.end(), {a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca});
+  }
+  m.indices = std::move(out);
+}
+
+void compute_bounds(SourceMesh& m) {
+  // min/max of the POSITION accessor cover every vertex, referenced or not.
+  m.lo = m.hi = m.positions.at(0);
+  for (const rtp::Vec3f& p : m.positions)
+    for (int k = 0; k < 3; ++k) {
+      m.lo[k] = std::min(m.lo[k], p[k]);
+      m.hi[k] = std::max(m.hi[k], p[k]);
+    }
+  double extent = 0;
+  for (int k = 0; k < 3; ++k) extent = std::max(extent, double(m.hi[k]) - double(m.lo[k]));
+  m.norm = extent > 0 ? 1.0 / extent : 1.0;
+}
+
+// ---------------------------------------------------------------------------------------------------
+// GLB writer: glTF JSON in nlohmann::json, one little-endian binary buffer.
+
+class GlbBuilder {
+ public:
+  json doc;
+
+  GlbBuilder() {
+    doc["asset"] = {{"version", "2.0"}, {"generator", "rtpack-make-scene"}};
+    for (const char* key : {"accessors", "bufferViews", "meshes", "nodes", "cameras"}) doc[key] = json::array();
+  }
+  void reserve(size_t bytes) { bin_.reserve(bytes); }
+  void put_f32(float v) {
+    uint32_t u;
+    std::memcpy(&u, &v, 4);
+    put_u32(u);
+  }
+  void put_u32(uint32_t v) {
+    for (int i = 0; i < 4; ++i) bin_.push_back(uint8_t(v >> (8 * i)));
+  }
+  void put_i16(int16_t v) {
+    const uint16_t u = uint16_t(v);
+    bin_.push_back(uint8_t(u));
+    bin_.push_back(uint8_t(u >> 8));
+  }
+  // Starts a buffer view (4-byte aligned) and returns its offset.
+  size_t begin_view() {
+    while (bin_.size() % 4) bin_.push_back(0);
+    return bin_.size();
+  }
+  // Ends the view started at `begin`, adds one accessor over it, returns the accessor index.
+  int end_accessor(size_t begin, int target, int component, size_t count, const char* type,
+                   bool normalized = false) {
+    json view = {{"buffer", 0}, {"byteOffset", begin}, {"byteLength", bin_.size() - begin}};
+    if (target) view["target"] = target;
+    doc["bufferViews"].push_back(std::move(view));
+    json acc = {{"bufferView", doc["bufferViews"].size() - 1},
+                {"componentType", component},
+                {"count", count},
+                {"type", type}};
+    if (normalized) acc["normalized"] = true;
+    doc["accessors"].push_back(std::move(acc));
+    return int(doc["accessors"].size() - 1);
+  }
+  int add_node(json node, int parent) {
+    doc["nodes"].push_back(std::move(node));
+    const int index = int(doc["nodes"].size() - 1);
+    if (parent >= 0) doc["nodes"][size_t(parent)]["children"].push_back(index);
+    return index;
+  }
+  size_t node_count() const { return doc["nodes"].size(); }
+
+  // Writes the .glb to `path` + ".tmp", then renames it to `path`.
+  uint64_t write(const std::string& path) {
+    begin_view();  // pad BIN to 4 bytes; buffer.byteLength == BIN chunk length
+    doc["buffers"] = json::array({json{{"byteLength", bin_.size()}}});
+    if (doc["cameras"].empty()) doc.erase("cameras");
+    std::string text = doc.dump();
+    while (text.size() % 4) text.push_back(' ');
+    const uint64_t total = 12 + 8 + text.size() + 8 + bin_.size();
+    if (total > 0xffffffffull)
+      throw Error(ExitCode::kUsage, "output would exceed the 4 GiB .glb limit; lower --count or --refine");
+    std::string header;
+    auto u32 = [&header](uint64_t v) {
+      for (int i = 0; i < 4; ++i) header.push_back(char(uint8_t(v >> (8 * i))));
+    };
+    u32(0x46546C67);  // "glTF"
+    u32(2);
+    u32(total);
+    u32(text.size());
+    u32(0x4E4F534A);  // "JSON"
+    const std::string tmp = path + ".tmp";
+    std::error_code ec;
+    {
+      std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+      if (!f) throw Error(ExitCode::kOutput, "cannot create '" + tmp + "': " + std::strerror(errno));
+      f.write(header.data(), std::streamsize(header.size()));
+      f.write(text.data(), std::streamsize(text.size()));
+      header.clear();
+      u32(bin_.size());
+      u32(0x004E4942);  // "BIN\0"
+      f.write(header.data(), std::streamsize(header.size()));
+      f.write(reinterpret_cast<const char*>(bin_.data()), std::streamsize(bin_.size()));
+      f.close();
+      if (!f) {
+        fs::remove(tmp, ec);
+        throw Error(ExitCode::kOutput, "error writing '" + tmp + "'");
+      }
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      throw Error(ExitCode::kOutput, "cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
+    }
+    return total;
+  }
+
+ private:
+  std::vector<uint8_t> bin_;
+};
+
+void add_mesh(GlbBuilder& g, const SourceMesh& m) {
+  size_t begin = g.begin_view();
+  for (const rtp::Vec3f& p : m.positions) {
+    g.put_f32(p.x);
+    g.put_f32(p.y);
+    g.put_f32(p.z);
+  }
+  const int pos = g.end_accessor(begin, kArrayBuffer, kFloat, m.positions.size(), "VEC3");
+  g.doc["accessors"][size_t(pos)]["min"] = {m.lo.x, m.lo.y, m.lo.z};
+  g.doc["accessors"][size_t(pos)]["max"] = {m.hi.x, m.hi.y, m.hi.z};
+  begin = g.begin_view();
+  for (uint32_t v : m.indices) g.put_u32(v);
+  const int idx = g.end_accessor(begin, kElementArrayBuffer, kUnsignedInt, m.indices.size(), "SCALAR");
+  json prim = {{"attributes", {{"POSITION", pos}}}, {"indices", idx}, {"mode", 4}};
+  g.doc["meshes"].push_back({{"name", m.name}, {"primitives", json::array({prim})}});
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Nodes and cameras
+
+D4 yaw_quat(double radians) { return {0, std::sin(radians / 2), 0, std::cos(radians / 2)}; }
+D4 pitch_quat(double radians) { return {std::sin(radians / 2), 0, 0, std::cos(radians / 2)}; }
+
+json trs_node(const std::string& name, const D3& t, const D4& q, const D3& s) {
+  return {{"name", name}, {"translation", t}, {"rotation", q}, {"scale", s}};
+}
+
+// The same transform as trs_node, stored as a column-major `matrix`.
+json matrix_node(const std::string& name, const D3& t, const D4& q, const D3& s) {
+  const rtp::Mat4d m = rtp::Mat4d::from_trs(t.data(), q.data(), s.data());
+  std::array<double, 16> cm{};
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) cm[size_t(c * 4 + r)] = m(r, c);
+  return {{"name", name}, {"matrix", cm}};
+}
+
+// A perspective camera looking down at `center` (25 degrees pitch, from +Z) so that the sphere of
+// `radius` fits the vertical field of view; optionally an orthographic camera looking straight down.
+void add_cameras(GlbBuilder& g, int parent, const rtp::Vec3d& center, double radius, bool ortho) {
+  const double yfov = 0.8, pitch = 25.0 * kPi / 180.0;
+  const double dist = radius / std::sin(yfov / 2);
+  g.doc["cameras"].push_back(
+      {{"name", "perspective"},
+       {"type", "perspective"},
+       {"perspective", {{"yfov", yfov}, {"aspectRatio", 1.5}, {"znear", dist * 1e-3}, {"zfar", dist * 4}}}});
+  const D3 eye = {center.x, center.y + dist * std::sin(pitch), center.z + dist * std::cos(pitch)};
+  json cam = {{"name", "camera_perspective"},
+              {"camera", g.doc["cameras"].size() - 1},
+              {"translation", eye},
+              {"rotation", pitch_quat(-pitch)}};
+  g.add_node(std::move(cam), parent);
+  if (!ortho) return;
+  g.doc["cameras"].push_back(
+      {{"name", "top"},
+       {"type", "orthographic"},
+       {"orthographic", {{"xmag", radius}, {"ymag", radius}, {"znear", radius * 1e-3}, {"zfar", radius * 4}}}});
+  const D3 top = {center.x, center.y + 2 * radius, center.z};
+  json node = {{"name", "camera_top"},
+               {"camera", g.doc["cameras"].size() - 1},
+               {"translation", top},
+               {"rotation", pitch_quat(-kPi / 2)}};
+  g.add_node(std::move(node), parent);
+}
+
+Totals build_gallery(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const Options& o, int root) {
+  const size_t count = size_t(o.count), per_row = 4, rows = (count + per_row - 1) / per_row;
+  const size_t mirrored = std::min<size_t>(2, count - 1);
+  const D3 platform_t = {0, 0.25, 0}, platform_s = {1.5, 1.5, 1.5};
+  const D4 platform_q = yaw_quat(20.0 * kPi / 180.0);
+  const int platform = g.add_node(trs_node("platform", platform_t, platform_q, platform_s), root);
+  Totals totals;
+  int row = -1;
+  for (size_t i = 0; i < count; ++i) {
+    const size_t r = i / per_row, p = i % per_row;
+    if (p == 0) {
+      const D3 t = {0, 0, -double(r) * o.spacing};
+      const std::string name = "row_" + std::to_string(r);
+      row = g.add_node(r % 2 ? matrix_node(name, t, yaw_quat(kPi), {1, 1, 1}) : trs_node(name, t, {0, 0, 0, 1}, {1, 1, 1}),
+                       platform);
+    }
+    const size_t mi = i % meshes.size();
+    const SourceMesh& m = meshes[mi];
+    const double s = m.norm;
+    const D3 t = {(double(p) - (per_row - 1) / 2.0) * o.spacing, -double(m.lo.y) * s, 0};
+    const D4 q = yaw_quat(double((i * 47) % 360) * kPi / 180.0);
+    const D3 scale = {i == mirrored ? -s : s, s, s};
+    const std::string name = "item_" + std::to_string(i) + (i == mirrored ? "_mirrored" : "");
+    json node = i % 2 ? matrix_node(name, t, q, scale) : trs_node(name, t, q, scale);
+    node["mesh"] = mi;
+    g.add_node(std::move(node), row);
+    totals.instances += 1;
+    totals.instanced_triangles += m.triangles();
+  }
+  // Content bounding sphere in platform space, then mapped into root space for the cameras.
+  const double w = (per_row - 1) * o.spacing + 1, d = (double(rows) - 1) * o.spacing + 1;
+  const rtp::Vec3d c_platform = {0, 0.5, -(double(rows) - 1) * o.spacing / 2};
+  const rtp::Affine3x4 pm =
+      rtp::Affine3x4::from(rtp::Mat4d::from_trs(platform_t.data(), platform_q.data(), platform_s.data()));
+  const double radius = platform_s[0] * 0.5 * std::sqrt(w * w + d * d + 1.0);
+  add_cameras(g, root, pm.apply(c_platform), radius, true);
+  return totals;
+}
+
+// Uniform double in [0, 1) from the top 53 bits: same sequence on every platform.
+double uniform(std::mt19937_64& rng) { return double(rng() >> 11) * 0x1.0p-53; }
+
+int16_t snorm16(double v) { return int16_t(std::lround(std::clamp(v, -1.0, 1.0) * 32767.0)); }
+
+Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const Options& o, int root) {
+  const uint64_t n = uint64_t(o.count), nm = meshes.size();
+  uint64_t grid = uint64_t(std::sqrt(double(n)));
+  while (grid * grid < n) ++grid;
+  struct Attributes {
+    std::vector<float> t, r, s;
+  };
+  std::vector<Attributes> attrs(nm);
+  for (uint64_t m = 0; m < nm; ++m) {
+    const uint64_t k = n / nm + (m < n % nm ? 1 : 0);
+    attrs[m].t.reserve(k * 3);
+    attrs[m].r.reserve(k * 4);
+    attrs[m].s.reserve(k * 3);
+  }
+  std::mt19937_64 rng(o.seed);
+  const double half = (double(grid) - 1) / 2;
+  for (uint64_t k = 0; k < n; ++k) {
+    const uint64_t mi = k % nm;
+    const SourceMesh& m = meshes[mi];
+    const double jx = (uniform(rng) - 0.5) * 0.5 * o.spacing, jz = (uniform(rng) - 0.5) * 0.5 * o.spacing;
+    const double yaw = uniform(rng) * 2 * kPi, sc = 0.5 + uniform(rng);
+    const double x = (double(k % grid) - half) * o.spacing + jx, z = (double(k / grid) - half) * o.spacing + jz;
+    // The node scales by m.norm, so translations are divided by it; y puts the mesh on the ground.
+    Attributes& a = attrs[mi];
+    a.t.insert(a.t.end(), {float(x / m.norm), float(-double(m.lo.y) * sc), float(z / m.norm)});
+    const D4 q = yaw_quat(yaw);
+    a.r.insert(a.r.end(), {float(q[0]), float(q[1]), float(q[2]), float(q[3])});
+    a.s.insert(a.s.end(), {float(sc), float(sc), float(sc)});
+  }
+  const uint64_t short_rotation_mesh = 1 % nm;
+  Totals totals;
+  for (uint64_t mi = 0; mi < nm; ++mi) {
+    Attributes& a = attrs[mi];
+    const size_t k = a.s.size() / 3;
+    size_t begin = g.begin_view();
+    for (float v : a.t) g.put_f32(v);
+    const int t = g.end_accessor(begin, 0, kFloat, k, "VEC3");
+    begin = g.begin_view();
+    int r;
+    if (mi == short_rotation_mesh) {
+      for (float v : a.r) g.put_i16(snorm16(v));
+      r = g.end_accessor(begin, 0, kShort, k, "VEC4", true);
+    } else {
+      for (float v : a.r) g.put_f32(v);
+      r = g.end_accessor(begin, 0, kFloat, k, "VEC4");
+    }
+    begin = g.begin_view();
+    for (float v : a.s) g.put_f32(v);
+    const int s = g.end_accessor(begin, 0, kFloat, k, "VEC3");
+    a = Attributes{};  // release early: peak memory stays ~2x the instance data
+    const double norm = meshes[mi].norm;
+    json node = {{"name", "forest_" + meshes[mi].name},
+                 {"mesh", mi},
+                 {"scale", D3{norm, norm, norm}},
+                 {"extensions", {{kInstancing, {{"attributes", {{"TRANSLATION", t}, {"ROTATION", r}, {"SCALE", s}}}}}}}};
+    g.add_node(std::move(node), root);
+    totals.instances += k;
+    totals.instanced_triangles += k * meshes[mi].triangles();
+  }
+  const double side = double(grid) * o.spacing;
+  add_cameras(g, root, {0, 0.5, 0}, 0.5 * std::sqrt(2 * side * side + 1.0), false);
+  g.doc["extensionsUsed"] = json::array({kInstancing});
+  return totals;
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+int run(const Options& cli) {
+  Options o = cli;
+  const bool forest = o.forest_content();
+  if (o.count < 0) o.count = forest ? 3000 : 12;
+  if (o.refine < 0) o.refine = forest ? 1 : 0;
+  std::vector<std::string> files = o.meshes;
+  if (files.empty())
+    for (const std::string& rel : kDefaultMeshes) files.push_back(resolve_default(rel));
+
+  std::vector<SourceMesh> meshes = load_sources(files);
+  if (uint64_t(o.count) < meshes.size())
+    throw Error(ExitCode::kUsage, "--count " + std::to_string(o.count) + " is below the number of source meshes (" +
+                                      std::to_string(meshes.size()) + "); every mesh needs an instance");
+  uint64_t unique = 0, vertices = 0;
+  for (const SourceMesh& m : meshes) unique += m.triangles() << (2 * o.refine);
+  if (unique > kMaxUniqueTriangles)
+    throw Error(ExitCode::kUsage, "--refine " + std::to_string(o.refine) + " would give " + std::to_string(unique) +
+                                      " unique triangles (limit " + std::to_string(kMaxUniqueTriangles) + ")");
+  for (SourceMesh& m : meshes) {
+    for (int level = 0; level < o.refine; ++level) refine_once(m);
+    compute_bounds(m);
+    vertices += m.positions.size();
+  }
+
+  GlbBuilder g;
+  g.reserve(size_t(vertices * 12 + unique * 12 + (forest ? uint64_t(o.count) * 40 : 0) + 4096));
+  json sources = json::array();
+  for (const std::string& f : files) sources.push_back(fs::path(f).filename().string());
+  g.doc["asset"]["extras"] = {{"kind", o.kind},   {"base", o.kind == "far" ? o.base : o.kind},
+                              {"count", o.count}, {"seed", o.seed},
+                              {"refine", o.refine}, {"spacing", o.spacing},
+                              {"sources", sources}};
+  for (const SourceMesh& m : meshes) add_mesh(g, m);
+  const D3 offset = o.kind == "far" ? kFarOffset : D3{0, 0, 0};
+  const int root = g.add_node(trs_node(o.kind + "_root", offset, {0, 0, 0, 1}, {1, 1, 1}), -1);
+  g.doc["scenes"] = json::array({json{{"name", o.kind}, {"nodes", json::array({root})}}});
+  g.doc["scene"] = 0;
+  const Totals totals = forest ? build_forest(g, meshes, o, root) : build_gallery(g, meshes, o, root);
+  const size_t nodes = g.node_count();
+  const uint64_t bytes = g.write(o.output);
+  std::cout << o.output << ": kind=" << o.kind << " nodes=" << nodes << " meshes=" << meshes.size()
+            << " instances=" << totals.instances << " unique_triangles=" << unique
+            << " instanced_triangles=" << totals.instanced_triangles << " bytes=" << bytes << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{"rtpack-make-scene: deterministic test scenes (.glb) from the sample meshes"};
+  app.add_option("kind", o.kind, "gallery | forest | far")->required()->check(CLI::IsMember({"gallery", "forest", "far"}));
+  app.add_option("-o,--output", o.output, "output .glb (written to OUTPUT.tmp, then renamed)")->required();
+  app.add_option("--count", o.count, "gallery: mesh nodes (default 12); forest: total instances (default 3000)")
+      ->check(CLI::Range(int64_t(1), int64_t(100'000'000)));
+  app.add_option("--seed", o.seed, "forest random seed (default 1)");
+  app.add_option("--spacing", o.spacing, "grid spacing; meshes are normalized to size 1 (default 2)")
+      ->check(CLI::Range(1e-3, 1e5));
+  app.add_option("--mesh", o.meshes, "source glTF file, repeatable (default: Suzanne, Lantern, BoomBox samples)")
+      ->allow_extra_args(false);
+  app.add_option("--refine", o.refine, "1-to-4 midpoint splits of every source triangle (default: forest 1, gallery 0)")
+      ->check(CLI::Range(0, 8));
+  CLI::Option* base = app.add_option("--base", o.base, "far only: gallery (default) or forest")
+                          ->check(CLI::IsMember({"gallery", "forest"}));
+  try {
+    app.parse(argc, argv);
+    if (base->count() > 0 && o.kind != "far") throw CLI::ValidationError("--base", "only applies to kind 'far'");
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : int(ExitCode::kUsage);
+  }
+  try {
+    return run(o);
+  } catch (const Error& e) {
+    std::cerr << "rtpack-make-scene: error: " << e.what() << "\n";
+    return int(e.code());
+  } catch (const std::exception& e) {
+    std::cerr << "rtpack-make-scene: internal error: " << e.what() << "\n";
+    return int(ExitCode::kInternal);
+  }
+}
