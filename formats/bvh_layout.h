@@ -1,0 +1,90 @@
+#pragma once
+// On-disk and in-memory layout of the wide BVH that every chunk carries (formats/SPEC.md §2).
+// Plain old data, little-endian, no pointers: the builder (lib/bvh) writes these, the tracer
+// (lib/trace) reads them; nothing else is shared between the two.
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+
+namespace rtp::fmt {
+
+// A child reference, 32 bits (SPEC §2.1):
+//   0xFFFFFFFF                  empty lane (its box is lo = +inf, hi = -inf)
+//   bit 31 = 0                  inner node: bits 0..30 = node index
+//   bit 31 = 1                  leaf: bits 0..26 = first leaf block, bits 27..30 = block count - 1
+//                               (1..16 consecutive blocks)
+struct ChildRef {
+  static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
+  static constexpr uint32_t kLeafBit = 0x80000000u;
+  static constexpr uint32_t kMaxNodes = 0x7FFFFFFFu;
+  static constexpr uint32_t kMaxBlockIndex = (1u << 27) - 1;
+  static constexpr uint32_t kMaxBlocksPerLeaf = 16;
+
+  static constexpr uint32_t inner(uint32_t node) { return node; }
+  static constexpr uint32_t leaf(uint32_t first_block, uint32_t block_count) {
+    return kLeafBit | ((block_count - 1) << 27) | first_block;
+  }
+  static constexpr bool is_empty(uint32_t r) { return r == kEmpty; }
+  static constexpr bool is_leaf(uint32_t r) { return (r & kLeafBit) != 0 && r != kEmpty; }
+  static constexpr uint32_t node_index(uint32_t r) { return r; }
+  static constexpr uint32_t first_block(uint32_t r) { return r & kMaxBlockIndex; }
+  static constexpr uint32_t block_count(uint32_t r) { return ((r >> 27) & 0xFu) + 1; }
+};
+
+// A W-wide BVH node (Benthin 2008 §4 multi-BVH; Molenaar 2019 §4.1 octant orders), SPEC §2.2.
+//   offset 0          float lo[3][W]   child box minima, SoA: x lanes, then y lanes, then z lanes
+//   offset 12W        float hi[3][W]   child box maxima, same order
+//   offset 24W        uint32 child[W]  ChildRef per lane; filled lanes first, empty lanes last
+//   offset 28W        uint8 order[8][W] per ray octant (bit0: dir.x<0, bit1: dir.y<0, bit2: dir.z<0),
+//                                      the lanes in front-to-back order of their box centres along
+//                                      that octant's diagonal; empty lanes listed last
+//   size  36W bytes  (W=4: 144, W=8: 288, W=16: 576), alignment 4W
+template <int W>
+struct alignas(4 * W) WideNode {
+  static_assert(W == 4 || W == 8 || W == 16);
+  float lo[3][W];
+  float hi[3][W];
+  uint32_t child[W];
+  uint8_t order[8][W];
+};
+static_assert(sizeof(WideNode<4>) == 144 && sizeof(WideNode<8>) == 288 && sizeof(WideNode<16>) == 576);
+static_assert(offsetof(WideNode<8>, hi) == 96 && offsetof(WideNode<8>, child) == 192 && offsetof(WideNode<8>, order) == 224);
+static_assert(std::is_trivially_copyable_v<WideNode<8>> && std::is_standard_layout_v<WideNode<8>>);
+
+// A pre-gathered SoA block of B triangles (Benthin 2008 §4.3 "pre-gathered leaves"), SPEC §2.3.
+//   offset 0     float v0[3][B]  first vertex, SoA x/y/z lanes
+//   offset 12B   float v1[3][B]
+//   offset 24B   float v2[3][B]
+//   offset 36B   uint32 prim[B]  triangle index within the mesh (Mesh::source maps it to glTF)
+//   size 40B bytes (B=4: 160, B=8: 320, B=16: 640), alignment 4B
+// A short block is padded by repeating its last triangle (vertices and prim id): no lane holds
+// garbage, and a repeated lane can only report the same hit again.
+template <int B>
+struct alignas(4 * B) LeafBlock {
+  static_assert(B == 4 || B == 8 || B == 16);
+  float v0[3][B];
+  float v1[3][B];
+  float v2[3][B];
+  uint32_t prim[B];
+};
+static_assert(sizeof(LeafBlock<4>) == 160 && sizeof(LeafBlock<8>) == 320 && sizeof(LeafBlock<16>) == 640);
+static_assert(offsetof(LeafBlock<8>, v1) == 96 && offsetof(LeafBlock<8>, prim) == 288);
+
+// An instance as the tracer sees it (SPEC §2.4), 112 bytes:
+//   offset 0   float local_to_world[12]  row-major 3x4
+//   offset 48  float world_to_local[12]  row-major 3x4, inverted in double then rounded
+//   offset 96  uint32 mesh               mesh (BVH) index
+//   offset 100 uint32 flags              bit 0: mirrored (det < 0)
+//   offset 104 uint32 source_node        glTF node
+//   offset 108 uint32 source_gpu_instance EXT_mesh_gpu_instancing index or 0xFFFFFFFF
+struct InstanceRecord {
+  float local_to_world[12];
+  float world_to_local[12];
+  uint32_t mesh;
+  uint32_t flags;
+  uint32_t source_node;
+  uint32_t source_gpu_instance;
+};
+static_assert(sizeof(InstanceRecord) == 112 && offsetof(InstanceRecord, mesh) == 96);
+
+}  // namespace rtp::fmt

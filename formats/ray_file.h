@@ -1,0 +1,33 @@
+#pragma once
+// Ray and hit records: the in-memory layout of the tracer and of the ray/hit files that outside
+// tools exchange with rtpack-trace (formats/SPEC.md §5). Little-endian, no header.
+#include <cstddef>
+#include <cstdint>
+
+namespace rtp::fmt {
+
+// 32 bytes: origin, tnear, direction, tfar. The ray is the segment org + t*dir, t in [tnear, tfar].
+// Directions need not be normalized. A ray with any NaN/Inf in org/dir, NaN tnear/tfar,
+// tnear > tfar or tnear = +inf is invalid: it comes back as a miss and is counted.
+struct Ray {
+  float org[3];
+  float tnear;
+  float dir[3];
+  float tfar;
+};
+static_assert(sizeof(Ray) == 32 && offsetof(Ray, tnear) == 12 && offsetof(Ray, dir) == 16 && offsetof(Ray, tfar) == 28);
+
+// 20 bytes: t (+inf when missed), instance index, primitive (triangle index within the instance's
+// mesh; Mesh::source maps it to glTF mesh/primitive/triangle), barycentrics u, v of the hit point
+// p = (1-u-v)*v0 + u*v1 + v*v2. On a miss instance = primitive = 0xFFFFFFFF and u = v = 0.
+struct Hit {
+  static constexpr uint32_t kNone = 0xFFFFFFFFu;
+  float t;
+  uint32_t instance;
+  uint32_t prim;
+  float u;
+  float v;
+};
+static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 8 && offsetof(Hit, v) == 16);
+
+}  // namespace rtp::fmt

@@ -1,0 +1,41 @@
+#pragma once
+// In-core tracing kernels over the two-level wide BVH: closest hit and any hit, scalar reference,
+// AVX2 and AVX-512 paths chosen at run time, two traversal orders.
+#include <cstddef>
+#include <cstdint>
+
+#include "formats/ray_file.h"
+#include "trace/scene_view.h"
+
+namespace rtp {
+
+enum class Isa { kScalar, kAvx2, kAvx512 };
+Isa detect_isa();              // the best this CPU supports (cpuid + OS support)
+const char* isa_name(Isa isa);  // "scalar", "avx2", "avx512"
+
+// Benthin 2008 §5.3–5.4 unsorted active list with pruning, or Molenaar 2019 §4.1 octant order + stack.
+enum class TraversalOrder { kOctantStack, kActiveList };
+const char* order_name(TraversalOrder order);
+
+struct TraceOptions {
+  Isa isa = Isa::kScalar;
+  TraversalOrder order = TraversalOrder::kOctantStack;
+};
+
+struct TraceStats {
+  uint64_t rays = 0;
+  uint64_t invalid_rays = 0;  // NaN/Inf, tnear > tfar, tnear = inf: returned as misses
+};
+
+// Closest hit for rays[0..n): hits[i].t = +inf on a miss. Thread-safe (no shared mutable state),
+// no allocation. Callers parallelize over ray ranges.
+template <int W, int B>
+TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
+                         const TraceOptions& options);
+
+// Any hit: occluded[i] = 1 if some triangle is hit with t in [tnear, tfar], else 0.
+template <int W, int B>
+TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,
+                     const TraceOptions& options);
+
+}  // namespace rtp
