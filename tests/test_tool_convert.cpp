@@ -1,0 +1,127 @@
+// End-to-end: rtpack-convert --dry-run as a user runs it (exit codes, messages, JSON summary).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <fstream>
+
+#include "gltf_builder.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ToolRun {
+  int code;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+ToolRun convert(const std::string& args, const fs::path& dir) {
+  const std::string cmd = std::string(RTP_BINARY_DIR) + "/rtpack-convert " + args + " > " + (dir / "out").string() +
+                          " 2> " + (dir / "err").string();
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
+}
+
+class Convert : public ::testing::Test {
+ protected:
+  fs::path dir = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  void TearDown() override { fs::remove_all(dir); }
+};
+
+TEST_F(Convert, DryRunJsonSummary) {
+  const fs::path p = source_dir() / "samples/generated/gallery.glb";
+  const ToolRun r = convert("--dry-run --json " + p.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["instances"].get<int>(), 12);
+  EXPECT_EQ(j["mirrored_instances"].get<int>(), 1);
+  EXPECT_EQ(j["meshes"].get<int>(), 5);
+  EXPECT_EQ(j["unique_triangles"].get<uint64_t>(), 15366u);
+  EXPECT_EQ(j["instanced_triangles"].get<uint64_t>(), 35540u);
+  EXPECT_EQ(j["cameras"].size(), 2u);
+  EXPECT_EQ(j["bounds"]["min"].size(), 3u);
+  EXPECT_TRUE(j["warnings"].empty());
+  EXPECT_EQ(j["preparation"]["triangles_after"].get<uint64_t>(), 15366u);
+}
+
+TEST_F(Convert, TextSummaryNamesCountsAndBounds) {
+  const ToolRun r = convert("--dry-run " + (source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("unique triangles     5,394"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bounds min"), std::string::npos);
+  EXPECT_NE(r.out.find("LanternPole_Lantern"), std::string::npos);
+}
+
+TEST_F(Convert, UniformSubdivisionQuadruples) {
+  const ToolRun r = convert("--dry-run --json --subdivide 2 " + (source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["unique_triangles"].get<uint64_t>(), 5394u * 16u);
+}
+
+TEST_F(Convert, AdaptiveSubdivisionMeetsTarget) {
+  const ToolRun r = convert("--dry-run --json --subdivide-to 0.5 " + (source_dir() / "samples/generated/gallery.glb").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto& per = j["preparation"]["adaptive"]["per_mesh"];
+  ASSERT_EQ(per.size(), 5u);
+  int refined = 0, untouched = 0;
+  for (const auto& m : per) {
+    EXPECT_FALSE(m["hit_cap"].get<bool>());
+    EXPECT_LT(m["longest_world_edge_after"].get<double>(), 0.5);
+    if (m["longest_world_edge_before"].get<double>() < 0.5) {
+      EXPECT_EQ(m["levels"].get<int>(), 0);
+      ++untouched;
+    } else {
+      EXPECT_GT(m["levels"].get<int>(), 0);
+      EXPECT_EQ(m["triangles_after"].get<uint64_t>(), m["triangles_before"].get<uint64_t>() << (2 * m["levels"].get<int>()));
+      ++refined;
+    }
+  }
+  EXPECT_GT(refined, 0);
+}
+
+TEST_F(Convert, BrokenFileExitCodeAndMessage) {
+  GltfBuilder b = one_triangle();
+  b.j["accessors"][1]["count"] = 3;
+  b.j["nodes"][0]["mesh"] = 3;
+  const std::string p = b.write_glb(dir / "broken.glb");
+  const ToolRun r = convert("--dry-run " + p, dir);
+  EXPECT_EQ(r.code, 3);
+  EXPECT_EQ(r.err, "error: " + p + ": /nodes/0/mesh: mesh 3 out of range (1 meshes)\n");
+  EXPECT_TRUE(r.out.empty());
+}
+
+TEST_F(Convert, MissingInputExitCode) {
+  const ToolRun r = convert("--dry-run " + (dir / "nope.glb").string(), dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no such file"), std::string::npos) << r.err;
+}
+
+TEST_F(Convert, UsageErrors) {
+  const std::string p = (source_dir() / "samples/generated/gallery.glb").string();
+  EXPECT_EQ(convert(p, dir).code, 1);                          // no output and no --dry-run
+  EXPECT_EQ(convert("--dry-run --scene 4 " + p, dir).code, 1);  // no such scene
+  EXPECT_EQ(convert("--dry-run --subdivide 1 --subdivide-to 2 " + p, dir).code, 1);
+  EXPECT_EQ(convert("--bogus " + p, dir).code, 1);
+}
+
+TEST_F(Convert, WarningsGoToStderr) {
+  GltfBuilder b = one_triangle();
+  b.j["meshes"][0]["primitives"].push_back({{"attributes", {{"POSITION", 0}}}, {"mode", 1}});
+  const std::string p = b.write_gltf(dir / "w.gltf");
+  ToolRun r = convert("--dry-run " + p, dir);
+  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.err, "warning: " + p + ": /meshes/0: 1 point/line primitives skipped\n");
+  r = convert("--dry-run -q " + p, dir);
+  EXPECT_TRUE(r.err.empty());
+}
+
+}  // namespace
+}  // namespace rtp::test
