@@ -54,7 +54,10 @@ PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
     rep.subdivide = subdivide_to_length(scene, opt.subdivide_to, opt.subdivide_max_levels);
   }
   rep.triangles_after = scene.unique_triangles();
-  scene.bounds = compute_world_bounds(scene);
+  // Bounds change only if geometry did: removed triangles, moved (welded) vertices, refinement.
+  const bool changed = rep.triangles_after != rep.triangles_before || rep.clean.degenerate_removed ||
+                       rep.clean.nonfinite_removed || rep.clean.welded_vertices || rep.meshes_emptied;
+  if (changed) scene.bounds = compute_world_bounds(scene);
   return rep;
 }
 

@@ -26,7 +26,7 @@ struct PrepareReport {
 };
 
 // Cleans, subdivides, drops emptied meshes (and their instances, with a warning in scene.warnings)
-// and recomputes the exact world bounds.
+// and recomputes the exact world bounds when the geometry changed.
 PrepareReport prepare_scene(Scene& scene, const PrepareOptions& options);
 
 nlohmann::json prepare_report_json(const PrepareReport& report);
