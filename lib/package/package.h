@@ -1,0 +1,81 @@
+#pragma once
+// The .rtp container: a streaming writer (temporary file, atomic rename, 4 KiB-aligned zstd chunks
+// with CRC-32C) and a verifying reader (pread, optional O_DIRECT). The chunk *contents* are defined
+// by the modules that produce them; this module only stores, finds and checks bytes.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "formats/package.h"
+
+namespace rtp {
+
+// CRC-32C (Castagnoli), hardware-accelerated (SSE4.2) with a table fallback.
+uint32_t crc32c(const void* data, size_t size, uint32_t crc = 0);
+uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
+
+// A readable name for a chunk in messages: "batching point 12 (chunk #30)".
+std::string chunk_label(const fmt::TocEntry& e, size_t toc_index);
+const char* chunk_kind_name(uint32_t kind);
+
+class PackageWriter {
+ public:
+  // Creates `<path>.tmp-<pid>` next to `path`; nothing appears at `path` before finish().
+  // Throws Error(kOutput) when the directory is not writable.
+  explicit PackageWriter(const std::string& path, int zstd_level = 9);
+  ~PackageWriter();  // without finish(): removes the temporary file
+  PackageWriter(const PackageWriter&) = delete;
+  PackageWriter& operator=(const PackageWriter&) = delete;
+
+  // Compresses (zstd level > 0, or stores raw when level == 0 or compression does not help),
+  // checksums and appends one chunk at the next 4 KiB boundary. Chunks are written in call order.
+  const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
+  // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
+  // `header`), flushes, and renames the temporary file to `path`.
+  void finish(fmt::Header header);
+
+  uint64_t bytes_written() const { return offset_; }
+  const std::vector<fmt::TocEntry>& toc() const { return toc_; }
+
+ private:
+  void write_at(uint64_t offset, const void* data, size_t size);
+  std::string path_, tmp_;
+  int fd_ = -1;
+  int level_;
+  uint64_t offset_ = fmt::kAlignment;
+  std::vector<fmt::TocEntry> toc_;
+  bool finished_ = false;
+};
+
+class PackageReader {
+ public:
+  // Opens and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
+  // and 4 KiB aligned). Throws Error(kInputInvalid) naming what is wrong; kInputIo when unreadable.
+  explicit PackageReader(const std::string& path, bool direct_io = false);
+  ~PackageReader();
+  PackageReader(const PackageReader&) = delete;
+  PackageReader& operator=(const PackageReader&) = delete;
+
+  const fmt::Header& header() const { return header_; }
+  const std::vector<fmt::TocEntry>& toc() const { return toc_; }
+  bool direct_io() const { return direct_; }  // false if O_DIRECT was asked for but unavailable
+
+  // Index of the chunk (kind, id) in toc(), or -1.
+  int64_t find(fmt::ChunkKind kind, uint64_t id) const;
+  // Reads, checks the CRC and decompresses chunk toc()[index]. Throws naming the chunk.
+  std::vector<uint8_t> read(size_t index) const;
+  // Reads and checks the CRC only (no decompression).
+  void verify(size_t index) const;
+
+ private:
+  std::vector<uint8_t> read_stored(size_t index) const;
+  std::string path_;
+  int fd_ = -1;
+  bool direct_ = false;
+  uint64_t file_size_ = 0;
+  fmt::Header header_{};
+  std::vector<fmt::TocEntry> toc_;
+};
+
+}  // namespace rtp

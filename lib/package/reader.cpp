@@ -1,0 +1,174 @@
+// Verifying package reader: header and TOC are checked on open; each chunk is read with pread
+// (O_DIRECT on request, falling back cleanly), its CRC-32C checked, then decompressed.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zstd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include "core/error.h"
+#include "package/package.h"
+
+namespace rtp {
+namespace {
+
+std::string hex32(uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "%08x", v);
+  return b;
+}
+
+}  // namespace
+
+const char* chunk_kind_name(uint32_t kind) {
+  switch (fmt::ChunkKind(kind)) {
+    case fmt::ChunkKind::kMetadata: return "metadata";
+    case fmt::ChunkKind::kTopLevelBvh: return "top-level BVH";
+    case fmt::ChunkKind::kBatchingPoints: return "batching-point descriptors";
+    case fmt::ChunkKind::kInstances: return "instance table";
+    case fmt::ChunkKind::kMeshes: return "mesh table";
+    case fmt::ChunkKind::kSourceMap: return "source map";
+    case fmt::ChunkKind::kBatchingPoint: return "batching point";
+    case fmt::ChunkKind::kMeshSegment: return "mesh segment";
+  }
+  return "unknown kind";
+}
+
+std::string chunk_label(const fmt::TocEntry& e, size_t i) {
+  return std::string(chunk_kind_name(e.kind)) + " " + std::to_string(e.id) + " (chunk #" + std::to_string(i) +
+         " at offset " + std::to_string(e.offset) + ")";
+}
+
+PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(path) {
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | (direct_io ? O_DIRECT : 0));
+  if (fd_ < 0 && direct_io && errno == EINVAL) fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);  // no O_DIRECT here
+  else direct_ = direct_io;
+  if (fd_ < 0) throw Error(ExitCode::kInputIo, "cannot open '" + path + "': " + std::strerror(errno));
+  struct stat st{};
+  if (::fstat(fd_, &st) != 0) throw Error(ExitCode::kInputIo, "cannot stat '" + path + "'");
+  file_size_ = uint64_t(st.st_size);
+  if (file_size_ < fmt::kAlignment)
+    fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
+                 std::to_string(fmt::kAlignment) + "-byte header block");
+  // The header block through the same aligned path as chunks.
+  fmt::TocEntry hb{};
+  hb.offset = 0;
+  hb.stored_size = fmt::kAlignment;
+  toc_.push_back(hb);
+  const std::vector<uint8_t> block = read_stored(0);
+  toc_.clear();
+  std::memcpy(&header_, block.data(), sizeof header_);
+  if (std::memcmp(header_.magic, fmt::kMagic, 8) != 0) fail_invalid("not an rtpack package (bad magic)");
+  if (header_.version_major != fmt::kVersionMajor)
+    fail_invalid("package version " + std::to_string(header_.version_major) + "." + std::to_string(header_.version_minor) +
+                 " is not supported by this reader (version " + std::to_string(fmt::kVersionMajor) + ".x)");
+  const uint32_t hcrc = crc32c(&header_, offsetof(fmt::Header, header_crc32c));
+  if (hcrc != header_.header_crc32c)
+    fail_invalid("header checksum mismatch (stored " + hex32(header_.header_crc32c) + ", computed " + hex32(hcrc) + "): corrupt header");
+  if (header_.file_size != file_size_)
+    fail_invalid("truncated file: header says " + std::to_string(header_.file_size) + " bytes, the file has " +
+                 std::to_string(file_size_));
+  if (header_.toc_entry_size < sizeof(fmt::TocEntry) || header_.toc_offset % fmt::kAlignment ||
+      header_.toc_offset < fmt::kAlignment || header_.toc_count > (file_size_ / header_.toc_entry_size) ||
+      header_.toc_offset + header_.toc_count * header_.toc_entry_size > file_size_)
+    fail_invalid("table of contents out of bounds (offset " + std::to_string(header_.toc_offset) + ", " +
+                 std::to_string(header_.toc_count) + " entries)");
+  // Read the TOC (the entries may be longer than ours in a newer minor version: keep our prefix).
+  fmt::TocEntry tb{};
+  tb.offset = header_.toc_offset;
+  tb.stored_size = header_.toc_count * header_.toc_entry_size;
+  toc_.push_back(tb);
+  const std::vector<uint8_t> raw = read_stored(0);
+  toc_.clear();
+  const uint32_t tcrc = crc32c(raw.data(), raw.size());
+  if (tcrc != header_.toc_crc32c)
+    fail_invalid("table of contents checksum mismatch (stored " + hex32(header_.toc_crc32c) + ", computed " + hex32(tcrc) + ")");
+  toc_.resize(header_.toc_count);
+  for (size_t i = 0; i < toc_.size(); ++i) {
+    std::memcpy(&toc_[i], raw.data() + i * header_.toc_entry_size, sizeof(fmt::TocEntry));
+    const fmt::TocEntry& e = toc_[i];
+    if (e.offset % fmt::kAlignment || e.offset < fmt::kAlignment || e.stored_size > header_.toc_offset ||
+        e.offset > header_.toc_offset - e.stored_size)
+      fail_invalid(chunk_label(e, i) + ": out of bounds (" + std::to_string(e.stored_size) + " bytes)");
+  }
+}
+
+PackageReader::~PackageReader() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+int64_t PackageReader::find(fmt::ChunkKind kind, uint64_t id) const {
+  for (size_t i = 0; i < toc_.size(); ++i)
+    if (toc_[i].kind == uint32_t(kind) && toc_[i].id == id) return int64_t(i);
+  return -1;
+}
+
+std::vector<uint8_t> PackageReader::read_stored(size_t index) const {
+  const fmt::TocEntry& e = toc_[index];
+  std::vector<uint8_t> out(e.stored_size);
+  if (!direct_) {
+    size_t done = 0;
+    while (done < out.size()) {
+      const ssize_t n = ::pread(fd_, out.data() + done, out.size() - done, off_t(e.offset + done));
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw Error(ExitCode::kInputIo, chunk_label(e, index) + ": read error: " + std::strerror(errno));
+      if (n == 0) fail_invalid(chunk_label(e, index) + ": truncated file");
+      done += size_t(n);
+    }
+    return out;
+  }
+  // O_DIRECT: aligned buffer, offset and length (the chunk starts on a 4 KiB boundary).
+  const size_t len = (e.stored_size + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
+  void* buf = std::aligned_alloc(fmt::kAlignment, len ? len : fmt::kAlignment);
+  if (!buf) throw std::bad_alloc();
+  size_t done = 0;
+  while (done < e.stored_size) {
+    const ssize_t n = ::pread(fd_, static_cast<char*>(buf) + done, len - done, off_t(e.offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      std::free(buf);
+      if (n == 0) fail_invalid(chunk_label(e, index) + ": truncated file");
+      throw Error(ExitCode::kInputIo, chunk_label(e, index) + ": read error: " + std::strerror(errno));
+    }
+    done += size_t(n);
+  }
+  std::memcpy(out.data(), buf, e.stored_size);
+  std::free(buf);
+  return out;
+}
+
+void PackageReader::verify(size_t index) const {
+  const std::vector<uint8_t> stored = read_stored(index);
+  const uint32_t c = crc32c(stored.data(), stored.size());
+  if (c != toc_[index].crc32c)
+    fail_invalid(chunk_label(toc_[index], index) + ": checksum mismatch (stored " + hex32(toc_[index].crc32c) + ", computed " +
+                 hex32(c) + "): corrupt chunk");
+}
+
+std::vector<uint8_t> PackageReader::read(size_t index) const {
+  const fmt::TocEntry& e = toc_[index];
+  std::vector<uint8_t> stored = read_stored(index);
+  const uint32_t c = crc32c(stored.data(), stored.size());
+  if (c != e.crc32c)
+    fail_invalid(chunk_label(e, index) + ": checksum mismatch (stored " + hex32(e.crc32c) + ", computed " + hex32(c) +
+                 "): corrupt chunk");
+  if (e.compression == uint32_t(fmt::Compression::kNone)) {
+    if (e.raw_size != e.stored_size) fail_invalid(chunk_label(e, index) + ": raw size differs from stored size");
+    return stored;
+  }
+  if (e.compression != uint32_t(fmt::Compression::kZstd))
+    fail_invalid(chunk_label(e, index) + ": unknown compression " + std::to_string(e.compression));
+  const unsigned long long declared = ZSTD_getFrameContentSize(stored.data(), stored.size());
+  if (declared != e.raw_size) fail_invalid(chunk_label(e, index) + ": zstd frame size disagrees with the table of contents");
+  std::vector<uint8_t> out(e.raw_size);
+  const size_t n = ZSTD_decompress(out.data(), out.size(), stored.data(), stored.size());
+  if (ZSTD_isError(n) || n != e.raw_size)
+    fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" +
+                 (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short") + ")");
+  return out;
+}
+
+}  // namespace rtp

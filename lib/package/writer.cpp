@@ -1,0 +1,101 @@
+// Streaming package writer: chunks go to a temporary file as they come, each zstd-compressed,
+// CRC-32C checksummed and 4 KiB aligned; the TOC and header are written last; the file appears at
+// its path only through an atomic rename once complete.
+#include <fcntl.h>
+#include <unistd.h>
+#include <zstd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "core/error.h"
+#include "package/package.h"
+
+namespace rtp {
+
+PackageWriter::PackageWriter(const std::string& path, int zstd_level) : path_(path), level_(zstd_level) {
+  namespace fs = std::filesystem;
+  if (zstd_level < 0 || zstd_level > ZSTD_maxCLevel())
+    throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be 0.." + std::to_string(ZSTD_maxCLevel()));
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': it is a directory");
+  const fs::path dir = fs::absolute(path, ec).parent_path();
+  if (!fs::is_directory(dir, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': no directory " + dir.string());
+  tmp_ = path + ".tmp-" + std::to_string(::getpid());
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error(ExitCode::kOutput, "cannot write '" + path + "': " + std::strerror(errno));
+}
+
+PackageWriter::~PackageWriter() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!finished_) ::unlink(tmp_.c_str());
+}
+
+void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  while (size) {
+    const ssize_t n = ::pwrite(fd_, p, size, off_t(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw Error(ExitCode::kOutput, "cannot write '" + tmp_ + "': " + std::strerror(errno));
+    p += n;
+    size -= size_t(n);
+    offset += uint64_t(n);
+  }
+}
+
+const fmt::TocEntry& PackageWriter::add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size) {
+  std::vector<uint8_t> packed;
+  const void* stored = data;
+  size_t stored_size = size;
+  fmt::Compression comp = fmt::Compression::kNone;
+  if (level_ > 0 && size > 0) {
+    packed.resize(ZSTD_compressBound(size));
+    // Single-threaded zstd: the same bytes whatever the thread count of the converter.
+    const size_t n = ZSTD_compress(packed.data(), packed.size(), data, size, level_);
+    if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));
+    if (n < size) {
+      stored = packed.data();
+      stored_size = n;
+      comp = fmt::Compression::kZstd;
+    }
+  }
+  fmt::TocEntry e{};
+  e.kind = uint32_t(kind);
+  e.compression = uint32_t(comp);
+  e.id = id;
+  e.offset = offset_;
+  e.stored_size = stored_size;
+  e.raw_size = size;
+  e.crc32c = crc32c(stored, stored_size);
+  write_at(offset_, stored, stored_size);
+  offset_ = (offset_ + stored_size + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
+  toc_.push_back(e);
+  return toc_.back();
+}
+
+void PackageWriter::finish(fmt::Header h) {
+  std::memcpy(h.magic, fmt::kMagic, 8);
+  h.version_major = fmt::kVersionMajor;
+  h.version_minor = fmt::kVersionMinor;
+  h.toc_offset = offset_;
+  h.toc_count = toc_.size();
+  h.toc_entry_size = sizeof(fmt::TocEntry);
+  h.toc_crc32c = crc32c(toc_.data(), toc_.size() * sizeof(fmt::TocEntry));
+  h.file_size = offset_ + toc_.size() * sizeof(fmt::TocEntry);
+  std::memset(h.reserved, 0, sizeof h.reserved);
+  h.header_crc32c = crc32c(&h, offsetof(fmt::Header, header_crc32c));
+  write_at(offset_, toc_.data(), toc_.size() * sizeof(fmt::TocEntry));
+  std::vector<uint8_t> block(fmt::kAlignment, 0);  // the whole first block: header + zeros
+  std::memcpy(block.data(), &h, sizeof h);
+  write_at(0, block.data(), block.size());
+  if (::ftruncate(fd_, off_t(h.file_size)) != 0 || ::fsync(fd_) != 0)
+    throw Error(ExitCode::kOutput, "cannot write '" + tmp_ + "': " + std::strerror(errno));
+  ::close(fd_);
+  fd_ = -1;
+  if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
+    throw Error(ExitCode::kOutput, "cannot rename '" + tmp_ + "' to '" + path_ + "': " + std::strerror(errno));
+  finished_ = true;
+}
+
+}  // namespace rtp

@@ -1,0 +1,178 @@
+// The .rtp container alone: round trip, alignment, checksums, and every corruption → a clear error.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <random>
+
+#include "core/error.h"
+#include "gltf_builder.h"
+#include "package/package.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<uint8_t> pattern(size_t n, uint32_t seed) {
+  std::vector<uint8_t> v(n);
+  std::mt19937 rng(seed);
+  for (size_t i = 0; i < n; ++i) v[i] = uint8_t(i % 7 == 0 ? rng() : i / 64);  // compressible but not trivial
+  return v;
+}
+
+// Writes a package with a few chunks of various sizes; returns their contents by TOC order.
+std::vector<std::vector<uint8_t>> write_sample(const std::string& path, int level = 3) {
+  std::vector<std::vector<uint8_t>> chunks = {pattern(100, 1), pattern(5000, 2), pattern(0, 3), pattern(70000, 4),
+                                              pattern(4096, 5)};
+  PackageWriter w(path, level);
+  w.add_chunk(fmt::ChunkKind::kMetadata, 0, chunks[0].data(), chunks[0].size());
+  for (size_t i = 1; i < chunks.size(); ++i) w.add_chunk(fmt::ChunkKind::kBatchingPoint, i - 1, chunks[i].data(), chunks[i].size());
+  fmt::Header h{};
+  h.unique_triangles = 7;
+  h.bvh_width = 8;
+  w.finish(h);
+  return chunks;
+}
+
+class Container : public ::testing::Test {
+ protected:
+  fs::path dir = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  void TearDown() override { fs::remove_all(dir); }
+};
+
+TEST_F(Container, Crc32cMatchesKnownValueAndPortablePath) {
+  const char* s = "123456789";
+  EXPECT_EQ(crc32c(s, 9), 0xE3069283u);  // the standard CRC-32C check value
+  const auto v = pattern(10007, 9);
+  EXPECT_EQ(crc32c(v.data(), v.size()), crc32c_portable(v.data(), v.size()));
+}
+
+TEST_F(Container, RoundTripAlignedAndNoTemporaryLeft) {
+  const std::string p = (dir / "a.rtp").string();
+  const auto chunks = write_sample(p);
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().filename(), "a.rtp");
+  PackageReader r(p);
+  EXPECT_EQ(r.header().unique_triangles, 7u);
+  ASSERT_EQ(r.toc().size(), chunks.size());
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    EXPECT_EQ(r.toc()[i].offset % 4096, 0u);
+    EXPECT_EQ(r.read(i), chunks[i]);
+  }
+  EXPECT_EQ(r.find(fmt::ChunkKind::kBatchingPoint, 2), 3);
+  EXPECT_EQ(r.find(fmt::ChunkKind::kMeshSegment, 0), -1);
+  EXPECT_EQ(r.toc()[4].compression, uint32_t(fmt::Compression::kZstd));
+  PackageReader d(p, /*direct_io=*/true);  // O_DIRECT or its clean fallback: same bytes
+  for (size_t i = 0; i < chunks.size(); ++i) EXPECT_EQ(d.read(i), chunks[i]);
+}
+
+TEST_F(Container, SameInputSameBytes) {
+  write_sample((dir / "a.rtp").string());
+  write_sample((dir / "b.rtp").string());
+  std::ifstream a(dir / "a.rtp", std::ios::binary), b(dir / "b.rtp", std::ios::binary);
+  EXPECT_TRUE(std::equal(std::istreambuf_iterator<char>(a), {}, std::istreambuf_iterator<char>(b)));
+}
+
+TEST_F(Container, WriterThatIsNotFinishedLeavesNothing) {
+  {
+    PackageWriter w((dir / "x.rtp").string());
+    const auto v = pattern(100, 1);
+    w.add_chunk(fmt::ChunkKind::kMetadata, 0, v.data(), v.size());
+  }  // e.g. an exception during conversion
+  EXPECT_TRUE(fs::is_empty(dir));
+  try {
+    PackageWriter w((dir / "no" / "such" / "x.rtp").string());
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ExitCode::kOutput);
+  }
+}
+
+// Opens the package and reads every chunk; returns the error message, or "" when all is fine.
+std::string open_and_read_all(const std::string& p) {
+  try {
+    PackageReader r(p);
+    for (size_t i = 0; i < r.toc().size(); ++i) r.read(i);
+  } catch (const Error& e) {
+    EXPECT_NE(e.code(), ExitCode::kInternal);
+    return e.what();
+  }
+  return "";
+}
+
+TEST_F(Container, TruncationAtTwentyOffsets) {
+  const std::string p = (dir / "a.rtp").string();
+  write_sample(p);
+  std::ifstream in(p, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  for (int k = 0; k < 20; ++k) {
+    const size_t cut = bytes.size() * size_t(k) / 20 + (k % 3);
+    std::ofstream(dir / "t.rtp", std::ios::binary).write(bytes.data(), std::streamsize(cut));
+    const std::string msg = open_and_read_all((dir / "t.rtp").string());
+    EXPECT_NE(msg.find("truncated file"), std::string::npos) << "cut " << cut << ": " << msg;
+  }
+}
+
+TEST_F(Container, ThousandRandomBitFlipsAreAllCaught) {
+  const std::string p = (dir / "a.rtp").string();
+  write_sample(p);
+  std::ifstream in(p, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  PackageReader clean(p);
+  // Bytes that matter: header, every chunk's stored bytes, the TOC (the zero padding is not read).
+  std::vector<std::pair<uint64_t, uint64_t>> ranges = {{0, 128}, {clean.header().toc_offset, clean.header().toc_count * 48}};
+  for (const auto& e : clean.toc()) ranges.push_back({e.offset, e.stored_size});
+  std::mt19937_64 rng(42);
+  int caught = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    auto [off, len] = ranges[rng() % ranges.size()];
+    if (len == 0) { --trial; continue; }
+    const uint64_t pos = off + rng() % len;
+    std::string s = bytes;
+    s[pos] = char(s[pos] ^ (1 << (rng() % 8)));
+    std::ofstream(dir / "f.rtp", std::ios::binary) << s;
+    const std::string msg = open_and_read_all((dir / "f.rtp").string());
+    caught += !msg.empty();
+    EXPECT_FALSE(msg.empty()) << "flip at byte " << pos << " went unnoticed";
+  }
+  EXPECT_EQ(caught, 1000);
+}
+
+TEST_F(Container, WrongVersionNamesBothVersions) {
+  const std::string p = (dir / "a.rtp").string();
+  write_sample(p);
+  std::fstream f(p, std::ios::binary | std::ios::in | std::ios::out);
+  const uint32_t v = 7;
+  f.seekp(8);
+  f.write(reinterpret_cast<const char*>(&v), 4);
+  f.close();
+  EXPECT_EQ(open_and_read_all(p), "package version 7.0 is not supported by this reader (version 1.x)");
+}
+
+TEST_F(Container, CorruptChunkIsNamed) {
+  const std::string p = (dir / "a.rtp").string();
+  write_sample(p);
+  uint64_t off;
+  {
+    PackageReader r(p);
+    off = r.toc()[3].offset;
+  }
+  std::fstream f(p, std::ios::binary | std::ios::in | std::ios::out);
+  f.seekg(std::streamoff(off + 10));
+  char c;
+  f.read(&c, 1);
+  c ^= 4;
+  f.seekp(std::streamoff(off + 10));
+  f.write(&c, 1);
+  f.close();
+  const std::string msg = open_and_read_all(p);
+  EXPECT_EQ(msg.rfind("batching point 2 (chunk #3 at offset " + std::to_string(off) + "): checksum mismatch", 0), 0u) << msg;
+}
+
+TEST_F(Container, NotAPackage) {
+  std::ofstream(dir / "x.rtp", std::ios::binary) << std::string(8192, 'x');
+  EXPECT_EQ(open_and_read_all((dir / "x.rtp").string()), "not an rtpack package (bad magic)");
+}
+
+}  // namespace
+}  // namespace rtp::test
