@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/aligned.h"
 #include "formats/package.h"
 
 namespace rtp {
@@ -63,13 +64,14 @@ class PackageReader {
 
   // Index of the chunk (kind, id) in toc(), or -1.
   int64_t find(fmt::ChunkKind kind, uint64_t id) const;
-  // Reads, checks the CRC and decompresses chunk toc()[index]. Throws naming the chunk.
-  std::vector<uint8_t> read(size_t index) const;
+  // Reads, checks the CRC and decompresses chunk toc()[index] into a 64-byte aligned buffer.
+  // Throws naming the chunk.
+  AlignedBytes read(size_t index) const;
   // Reads and checks the CRC only (no decompression).
   void verify(size_t index) const;
 
  private:
-  std::vector<uint8_t> read_stored(size_t index) const;
+  AlignedBytes read_stored(size_t index) const;
   std::string path_;
   int fd_ = -1;
   bool direct_ = false;

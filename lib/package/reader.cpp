@@ -58,7 +58,7 @@ PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(pa
   hb.offset = 0;
   hb.stored_size = fmt::kAlignment;
   toc_.push_back(hb);
-  const std::vector<uint8_t> block = read_stored(0);
+  const AlignedBytes block = read_stored(0);
   toc_.clear();
   std::memcpy(&header_, block.data(), sizeof header_);
   if (std::memcmp(header_.magic, fmt::kMagic, 8) != 0) fail_invalid("not an rtpack package (bad magic)");
@@ -81,7 +81,7 @@ PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(pa
   tb.offset = header_.toc_offset;
   tb.stored_size = header_.toc_count * header_.toc_entry_size;
   toc_.push_back(tb);
-  const std::vector<uint8_t> raw = read_stored(0);
+  const AlignedBytes raw = read_stored(0);
   toc_.clear();
   const uint32_t tcrc = crc32c(raw.data(), raw.size());
   if (tcrc != header_.toc_crc32c)
@@ -106,9 +106,9 @@ int64_t PackageReader::find(fmt::ChunkKind kind, uint64_t id) const {
   return -1;
 }
 
-std::vector<uint8_t> PackageReader::read_stored(size_t index) const {
+AlignedBytes PackageReader::read_stored(size_t index) const {
   const fmt::TocEntry& e = toc_[index];
-  std::vector<uint8_t> out(e.stored_size);
+  AlignedBytes out(e.stored_size);
   if (!direct_) {
     size_t done = 0;
     while (done < out.size()) {
@@ -141,16 +141,16 @@ std::vector<uint8_t> PackageReader::read_stored(size_t index) const {
 }
 
 void PackageReader::verify(size_t index) const {
-  const std::vector<uint8_t> stored = read_stored(index);
+  const AlignedBytes stored = read_stored(index);
   const uint32_t c = crc32c(stored.data(), stored.size());
   if (c != toc_[index].crc32c)
     fail_invalid(chunk_label(toc_[index], index) + ": checksum mismatch (stored " + hex32(toc_[index].crc32c) + ", computed " +
                  hex32(c) + "): corrupt chunk");
 }
 
-std::vector<uint8_t> PackageReader::read(size_t index) const {
+AlignedBytes PackageReader::read(size_t index) const {
   const fmt::TocEntry& e = toc_[index];
-  std::vector<uint8_t> stored = read_stored(index);
+  AlignedBytes stored = read_stored(index);
   const uint32_t c = crc32c(stored.data(), stored.size());
   if (c != e.crc32c)
     fail_invalid(chunk_label(e, index) + ": checksum mismatch (stored " + hex32(e.crc32c) + ", computed " + hex32(c) +
@@ -163,7 +163,7 @@ std::vector<uint8_t> PackageReader::read(size_t index) const {
     fail_invalid(chunk_label(e, index) + ": unknown compression " + std::to_string(e.compression));
   const unsigned long long declared = ZSTD_getFrameContentSize(stored.data(), stored.size());
   if (declared != e.raw_size) fail_invalid(chunk_label(e, index) + ": zstd frame size disagrees with the table of contents");
-  std::vector<uint8_t> out(e.raw_size);
+  AlignedBytes out(e.raw_size);
   const size_t n = ZSTD_decompress(out.data(), out.size(), stored.data(), stored.size());
   if (ZSTD_isError(n) || n != e.raw_size)
     fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" +

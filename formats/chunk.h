@@ -1,0 +1,73 @@
+#pragma once
+// The inside of every chunk (formats/SPEC.md §4): a small section table, then 64-byte aligned
+// arrays of the formats/ structs. Offsets are relative to the start of the (decompressed) chunk.
+#include <cstddef>
+#include <cstdint>
+
+namespace rtp::fmt {
+
+inline constexpr uint32_t kChunkMagic = 0x48435452;  // "RTCH"
+
+// Chunk header, 16 bytes, followed by section_count SectionEntry records:
+//   0  uint32 magic "RTCH"
+//   4  uint32 kind          = the TOC kind
+//   8  uint32 section_count
+//   12 uint32 reserved (0)
+struct ChunkHeader {
+  uint32_t magic;
+  uint32_t kind;
+  uint32_t section_count;
+  uint32_t reserved;
+};
+static_assert(sizeof(ChunkHeader) == 16);
+
+// Section entry, 24 bytes:
+//   0  uint32 type          SectionType
+//   4  uint32 elem_size     bytes per element (checked against the reader's struct size)
+//   8  uint64 offset        multiple of 64, relative to the chunk start
+//   16 uint64 count         number of elements
+struct SectionEntry {
+  uint32_t type;
+  uint32_t elem_size;
+  uint64_t offset;
+  uint64_t count;
+};
+static_assert(sizeof(SectionEntry) == 24 && offsetof(SectionEntry, offset) == 8);
+
+enum class SectionType : uint32_t {
+  kNodes = 1,         // WideNode<W>[]  (mesh or instance BVH nodes, concatenated)
+  kBlocks = 2,        // LeafBlock<B>[] (concatenated)
+  kMeshEntries = 3,   // MeshEntry[]    (one BVH per entry: its slice of kNodes/kBlocks)
+  kInstanceIds = 4,   // uint32[]       top-level leaf entries (local instance indices)
+  kInstances = 5,     // InstanceRecord[] local instances (mesh = local mesh slot)
+  kGlobalIds = 6,     // uint32[]       per local instance: the scene instance index
+  kMeshSlots = 7,     // uint32[]       per local mesh slot: global mesh id, or kPieceBit | entry
+  kTopNodes = 8,      // TopNode[]
+  kPointDescs = 9,    // BatchingPointDesc[]
+  kSegmentRefs = 10,  // uint32[]       mesh segments a batching point needs (ranges in descs)
+  kMeshTable = 11,    // MeshInfo[]     resident global mesh table
+  kSourcePrims = 12,  // SourcePrimitive pairs {gltf mesh, gltf primitive} (uint32[2])
+  kSourceTris = 13,   // TriangleSource pairs {primitive slot, triangle} (uint32[2])
+  kJson = 14,         // uint8[] UTF-8 JSON text
+};
+
+// One BVH inside a chunk, 32 bytes:
+//   0  uint32 id           global mesh id (segments) or piece index (batching points)
+//   4  uint32 root         ChildRef, node indices relative to node_first
+//   8  uint32 node_first   first node in kNodes
+//   12 uint32 node_count
+//   16 uint32 block_first  first block in kBlocks (leaf refs are relative to it)
+//   20 uint32 block_count
+//   24 uint64 triangles
+struct MeshEntry {
+  uint32_t id;
+  uint32_t root;
+  uint32_t node_first;
+  uint32_t node_count;
+  uint32_t block_first;
+  uint32_t block_count;
+  uint64_t triangles;
+};
+static_assert(sizeof(MeshEntry) == 32 && offsetof(MeshEntry, triangles) == 24);
+
+}  // namespace rtp::fmt

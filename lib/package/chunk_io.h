@@ -1,0 +1,69 @@
+#pragma once
+// Building and parsing chunk payloads (formats/chunk.h): typed sections, bounds-checked views.
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "core/aligned.h"
+#include "core/error.h"
+#include "formats/chunk.h"
+
+namespace rtp {
+
+class ChunkBuilder {
+ public:
+  explicit ChunkBuilder(uint32_t kind) : kind_(kind) {}
+  template <class T>
+  void add(fmt::SectionType type, const std::vector<T>& v) {
+    add_raw(type, v.data(), v.size(), sizeof(T));
+  }
+  void add_raw(fmt::SectionType type, const void* data, size_t count, size_t elem_size);
+  AlignedBytes finish() const;
+
+ private:
+  struct Pending { fmt::SectionEntry e; std::vector<uint8_t> bytes; };
+  uint32_t kind_;
+  std::vector<Pending> sections_;
+};
+
+// A parsed chunk: every section inside the buffer, 64-byte aligned, element sizes as expected.
+class ChunkView {
+ public:
+  // `label` names the chunk in error messages (e.g. "batching point 3 (chunk #7 ...)").
+  // `bytes` must be 64-byte aligned (AlignedBytes) and outlive the view.
+  ChunkView(const uint8_t* bytes, size_t size, uint32_t expected_kind, std::string label);
+  bool has(fmt::SectionType type) const { return find(type) != nullptr; }
+  template <class T>
+  const T* get(fmt::SectionType type, uint64_t& count, bool required = true) const {
+    const fmt::SectionEntry* e = find(type);
+    if (!e) {
+      if (required) fail_invalid(label_ + ": missing section " + std::to_string(uint32_t(type)));
+      count = 0;
+      return nullptr;
+    }
+    if (e->elem_size != sizeof(T))
+      fail_invalid(label_ + ": section " + std::to_string(uint32_t(type)) + " has elements of " + std::to_string(e->elem_size) +
+                   " bytes, expected " + std::to_string(sizeof(T)));
+    count = e->count;
+    return reinterpret_cast<const T*>(bytes_ + e->offset);
+  }
+  template <class T>
+  std::vector<T> copy(fmt::SectionType type, bool required = true) const {
+    uint64_t n = 0;
+    const T* p = get<T>(type, n, required);
+    std::vector<T> out(n);
+    if (n) std::memcpy(out.data(), p, n * sizeof(T));
+    return out;
+  }
+  const std::string& label() const { return label_; }
+
+ private:
+  const fmt::SectionEntry* find(fmt::SectionType type) const;
+  const uint8_t* bytes_;
+  size_t size_;
+  std::vector<fmt::SectionEntry> sections_;
+  std::string label_;
+};
+
+}  // namespace rtp
