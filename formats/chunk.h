@@ -49,7 +49,11 @@ enum class SectionType : uint32_t {
   kSourcePrims = 12,  // SourcePrimitive pairs {gltf mesh, gltf primitive} (uint32[2])
   kSourceTris = 13,   // TriangleSource pairs {primitive slot, triangle} (uint32[2])
   kJson = 14,         // uint8[] UTF-8 JSON text
+  kInstanceNodes = 15,  // WideNode<W>[] the batching point's instance BVH
+  kInstanceBvh = 16,    // one MeshEntry: the instance BVH's root and sizes (items in kInstanceIds)
 };
+
+inline constexpr uint32_t kPieceBit = 0x80000000u;  // kMeshSlots: a piece stored in this chunk
 
 // One BVH inside a chunk, 32 bytes:
 //   0  uint32 id           global mesh id (segments) or piece index (batching points)
@@ -69,5 +73,47 @@ struct MeshEntry {
   uint64_t triangles;
 };
 static_assert(sizeof(MeshEntry) == 32 && offsetof(MeshEntry, triangles) == 24);
+
+// Resident mesh table entry (kMeshTable), 32 bytes:
+//   0  uint32 segment        mesh segment holding its BVH, or 0xFFFFFFFF for a unique mesh (stored
+//                            as world-space pieces in batching points)
+//   4  uint32 flags          bit 0: instanced (used by >= 2 instances)
+//   8  uint64 triangles
+//   16 uint32 source_prim_first  first entry of this mesh in kSourcePrims
+//   20 uint32 source_prim_count
+//   24 uint64 source_tri_first   first entry of this mesh in kSourceTris (one per triangle)
+struct MeshInfo {
+  uint32_t segment;
+  uint32_t flags;
+  uint64_t triangles;
+  uint32_t source_prim_first;
+  uint32_t source_prim_count;
+  uint64_t source_tri_first;
+};
+static_assert(sizeof(MeshInfo) == 32 && offsetof(MeshInfo, source_tri_first) == 24);
+
+// Batching-point descriptor (kPointDescs), 64 bytes:
+//   0  float lo[3], 12 float hi[3]   world bounds
+//   24 uint64 unique_triangles       triangles of its pieces
+//   32 uint64 instanced_triangles    Σ triangles of its instances' meshes
+//   40 uint32 instance_count         instances of instanced meshes
+//   44 uint32 piece_count
+//   48 uint32 segment_first          range in kSegmentRefs: the segments it needs
+//   52 uint32 segment_count
+//   56 uint32 chunk_id               id of its kBatchingPoint chunk (= its index)
+//   60 uint32 reserved
+struct BatchingPointDesc {
+  float lo[3];
+  float hi[3];
+  uint64_t unique_triangles;
+  uint64_t instanced_triangles;
+  uint32_t instance_count;
+  uint32_t piece_count;
+  uint32_t segment_first;
+  uint32_t segment_count;
+  uint32_t chunk_id;
+  uint32_t reserved;
+};
+static_assert(sizeof(BatchingPointDesc) == 64 && offsetof(BatchingPointDesc, chunk_id) == 56);
 
 }  // namespace rtp::fmt

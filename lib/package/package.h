@@ -32,6 +32,11 @@ class PackageWriter {
   // Compresses (zstd level > 0, or stores raw when level == 0 or compression does not help),
   // checksums and appends one chunk at the next 4 KiB boundary. Chunks are written in call order.
   const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
+  // The same in two steps, so compression can run on other threads: compress() is thread-safe
+  // and deterministic (single-threaded zstd); add_packed() appends in call order.
+  static std::vector<uint8_t> compress(const void* data, size_t size, int level, fmt::Compression& used);
+  const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
+                                  fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
   // `header`), flushes, and renames the temporary file to `path`.
   void finish(fmt::Header header);

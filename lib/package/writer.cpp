@@ -44,34 +44,42 @@ void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) {
   }
 }
 
-const fmt::TocEntry& PackageWriter::add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size) {
-  std::vector<uint8_t> packed;
-  const void* stored = data;
-  size_t stored_size = size;
-  fmt::Compression comp = fmt::Compression::kNone;
-  if (level_ > 0 && size > 0) {
-    packed.resize(ZSTD_compressBound(size));
-    // Single-threaded zstd: the same bytes whatever the thread count of the converter.
-    const size_t n = ZSTD_compress(packed.data(), packed.size(), data, size, level_);
+std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used) {
+  used = fmt::Compression::kNone;
+  if (level > 0 && size > 0) {
+    std::vector<uint8_t> packed(ZSTD_compressBound(size));
+    const size_t n = ZSTD_compress(packed.data(), packed.size(), data, size, level);
     if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));
-    if (n < size) {
-      stored = packed.data();
-      stored_size = n;
-      comp = fmt::Compression::kZstd;
+    if (n < size) {  // stored raw when compression does not help
+      packed.resize(n);
+      used = fmt::Compression::kZstd;
+      return packed;
     }
   }
+  const uint8_t* p = static_cast<const uint8_t*>(data);
+  return std::vector<uint8_t>(p, p + size);
+}
+
+const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
+                                               fmt::Compression compression, uint64_t raw_size) {
   fmt::TocEntry e{};
   e.kind = uint32_t(kind);
-  e.compression = uint32_t(comp);
+  e.compression = uint32_t(compression);
   e.id = id;
   e.offset = offset_;
-  e.stored_size = stored_size;
-  e.raw_size = size;
-  e.crc32c = crc32c(stored, stored_size);
-  write_at(offset_, stored, stored_size);
-  offset_ = (offset_ + stored_size + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
+  e.stored_size = stored.size();
+  e.raw_size = raw_size;
+  e.crc32c = crc32c(stored.data(), stored.size());
+  write_at(offset_, stored.data(), stored.size());
+  offset_ = (offset_ + stored.size() + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
   toc_.push_back(e);
   return toc_.back();
+}
+
+const fmt::TocEntry& PackageWriter::add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size) {
+  fmt::Compression c;
+  const std::vector<uint8_t> stored = compress(data, size, level_, c);
+  return add_packed(kind, id, stored, c, size);
 }
 
 void PackageWriter::finish(fmt::Header h) {

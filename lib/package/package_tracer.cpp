@@ -1,0 +1,238 @@
+// In-core package tracing: chunk views -> per batching point SceneView; top level traversed front to
+// back in double precision (Molenaar 2019 §4.1 top-level BVH over batching points).
+#include "package/package_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "core/error.h"
+#include "formats/chunk.h"
+#include "formats/top_level.h"
+#include "package/chunk_io.h"
+
+namespace rtp {
+
+bool ray_is_valid(const fmt::Ray& r) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(r.org[k]) || !std::isfinite(r.dir[k])) return false;
+  if (std::isnan(r.tnear) || std::isnan(r.tfar) || r.tnear > r.tfar || r.tnear == std::numeric_limits<float>::infinity())
+    return false;
+  return true;
+}
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+template <int W, int B>
+struct Point {
+  SceneView<W, B> view;
+  std::vector<MeshBvhView<W, B>> meshes;  // by local slot
+  const uint32_t* global_ids = nullptr;
+  uint64_t instance_count = 0;
+};
+
+template <int W, int B>
+class Tracer final : public PackageTracer {
+ public:
+  explicit Tracer(const PackageReader& r) {
+    const auto& toc = r.toc();
+    auto load = [&](fmt::ChunkKind kind, uint64_t id) -> const AlignedBytes& {
+      const int64_t i = r.find(kind, id);
+      if (i < 0) fail_invalid(std::string("missing ") + chunk_kind_name(uint32_t(kind)) + " " + std::to_string(id));
+      chunks_.push_back(r.read(size_t(i)));
+      labels_.push_back(chunk_label(toc[size_t(i)], size_t(i)));
+      return chunks_.back();
+    };
+    chunks_.reserve(toc.size());
+    {
+      const AlignedBytes& b = load(fmt::ChunkKind::kTopLevelBvh, 0);
+      ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kTopLevelBvh), labels_.back());
+      top_ = v.get<fmt::TopNode>(fmt::SectionType::kTopNodes, top_count_, true);
+    }
+    uint64_t n_points = 0;
+    const fmt::BatchingPointDesc* descs;
+    const AlignedBytes& db = load(fmt::ChunkKind::kBatchingPoints, 0);
+    ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), labels_.back());
+    descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n_points);
+    // Segments: mesh id -> view.
+    std::map<uint32_t, MeshBvhView<W, B>> segment_meshes;
+    for (size_t i = 0; i < toc.size(); ++i) {
+      if (toc[i].kind != uint32_t(fmt::ChunkKind::kMeshSegment)) continue;
+      const AlignedBytes& b = load(fmt::ChunkKind::kMeshSegment, toc[i].id);
+      ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMeshSegment), labels_.back());
+      uint64_t ne, nn, nb;
+      const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(fmt::SectionType::kMeshEntries, ne);
+      const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kNodes, nn);
+      const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(fmt::SectionType::kBlocks, nb);
+      for (uint64_t k = 0; k < ne; ++k) {
+        check_entry(e[k], nn, nb, labels_.back());
+        segment_meshes[e[k].id] = {nodes + e[k].node_first, blocks + e[k].block_first, e[k].root};
+      }
+    }
+    points_.resize(n_points);
+    for (uint64_t p = 0; p < n_points; ++p) {
+      const AlignedBytes& b = load(fmt::ChunkKind::kBatchingPoint, descs[p].chunk_id);
+      const std::string& label = labels_.back();
+      ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
+      Point<W, B>& pt = points_[p];
+      uint64_t n_te, n_in, n_ids, n_rec, n_gid, n_slot, ne, nn, nb;
+      const fmt::MeshEntry* te = v.get<fmt::MeshEntry>(fmt::SectionType::kInstanceBvh, n_te);
+      const fmt::WideNode<W>* inodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kInstanceNodes, n_in);
+      const uint32_t* ids = v.get<uint32_t>(fmt::SectionType::kInstanceIds, n_ids);
+      const fmt::InstanceRecord* rec = v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n_rec);
+      pt.global_ids = v.get<uint32_t>(fmt::SectionType::kGlobalIds, n_gid);
+      const uint32_t* slots = v.get<uint32_t>(fmt::SectionType::kMeshSlots, n_slot);
+      const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(fmt::SectionType::kMeshEntries, ne);
+      const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kNodes, nn);
+      const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(fmt::SectionType::kBlocks, nb);
+      if (n_te != 1 || n_gid != n_rec || te[0].node_count != n_in || te[0].block_count != n_ids)
+        fail_invalid(label + ": instance table sizes disagree");
+      for (uint64_t k = 0; k < n_ids; ++k)
+        if (ids[k] >= n_rec) fail_invalid(label + ": instance BVH references instance " + std::to_string(ids[k]));
+      for (uint64_t k = 0; k < n_rec; ++k)
+        if (rec[k].mesh >= n_slot) fail_invalid(label + ": instance " + std::to_string(k) + " has no mesh slot");
+      for (uint64_t k = 0; k < ne; ++k) check_entry(e[k], nn, nb, label);
+      pt.meshes.resize(n_slot);
+      for (uint64_t s = 0; s < n_slot; ++s) {
+        if (slots[s] & fmt::kPieceBit) {
+          const uint32_t k = slots[s] & ~fmt::kPieceBit;
+          if (k >= ne) fail_invalid(label + ": mesh slot " + std::to_string(s) + " names a missing piece");
+          pt.meshes[s] = {nodes + e[k].node_first, blocks + e[k].block_first, e[k].root};
+        } else {
+          auto it = segment_meshes.find(slots[s]);
+          if (it == segment_meshes.end()) fail_invalid(label + ": mesh " + std::to_string(slots[s]) + " is in no segment");
+          pt.meshes[s] = it->second;
+        }
+      }
+      pt.view = {inodes, te[0].root, ids, rec, pt.meshes.data()};
+      pt.instance_count = n_rec;
+    }
+    for (uint64_t n = 0; n < top_count_; ++n)
+      for (int l = 0; l < 4; ++l) {
+        const uint32_t c = top_[n].child[l];
+        if (c == fmt::TopNode::kEmpty) continue;
+        if ((c & fmt::TopNode::kLeafBit) ? (c & ~fmt::TopNode::kLeafBit) >= n_points : c >= top_count_ || c <= n)
+          fail_invalid(labels_[0] + ": node " + std::to_string(n) + " lane " + std::to_string(l) + " out of range");
+      }
+  }
+
+  uint64_t batching_points() const override { return points_.size(); }
+
+  TraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const TraceOptions& o) const override {
+    TraceStats st;
+    st.rays = n;
+    for (size_t i = 0; i < n; ++i) {
+      hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
+      if (!ray_is_valid(rays[i])) {
+        ++st.invalid_rays;
+        continue;
+      }
+      fmt::Ray ray = rays[i];
+      traverse(ray, [&](const Point<W, B>& pt) {
+        fmt::Hit h;
+        trace_closest<W, B>(pt.view, &ray, &h, 1, o);
+        if (h.t < hits[i].t) {
+          hits[i] = h;
+          hits[i].instance = pt.global_ids[h.instance];
+          ray.tfar = h.t;  // later batching points only need to beat this hit
+        }
+        return false;
+      });
+    }
+    return st;
+  }
+
+  TraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const TraceOptions& o) const override {
+    TraceStats st;
+    st.rays = n;
+    for (size_t i = 0; i < n; ++i) {
+      occluded[i] = 0;
+      if (!ray_is_valid(rays[i])) {
+        ++st.invalid_rays;
+        continue;
+      }
+      traverse(rays[i], [&](const Point<W, B>& pt) {
+        uint8_t occ = 0;
+        trace_any<W, B>(pt.view, &rays[i], &occ, 1, o);
+        occluded[i] = occ;
+        return occ != 0;
+      });
+    }
+    return st;
+  }
+
+ private:
+  static void check_entry(const fmt::MeshEntry& e, uint64_t nn, uint64_t nb, const std::string& label) {
+    if (uint64_t(e.node_first) + e.node_count > nn || uint64_t(e.block_first) + e.block_count > nb)
+      fail_invalid(label + ": BVH of mesh " + std::to_string(e.id) + " out of bounds");
+  }
+
+  // Front-to-back over the top level: lanes sorted by entry distance, skipped once beyond ray.tfar
+  // (which the visitor may shrink). `visit` returns true to stop (any hit).
+  template <class Visit>
+  void traverse(const fmt::Ray& ray, Visit&& visit) const {
+    if (top_count_ == 0) return;
+    // The top level has no depth limit: the stack grows when it must (per thread, reused, so the
+    // steady state allocates nothing).
+    thread_local std::vector<Entry> stack;
+    stack.clear();
+    stack.push_back({0, double(ray.tnear)});
+    double inv[3];
+    for (int k = 0; k < 3; ++k) inv[k] = 1.0 / double(ray.dir[k]);
+    while (!stack.empty()) {
+      const Entry e = stack.back();
+      stack.pop_back();
+      if (e.t > double(ray.tfar)) continue;
+      if (e.ref & fmt::TopNode::kLeafBit) {
+        if (visit(points_[e.ref & ~fmt::TopNode::kLeafBit])) return;
+        continue;
+      }
+      const fmt::TopNode& node = top_[e.ref];
+      Entry kids[4];
+      int nk = 0;
+      for (int l = 0; l < 4; ++l) {
+        if (node.child[l] == fmt::TopNode::kEmpty) continue;
+        double t0 = ray.tnear, t1 = ray.tfar;
+        bool hit = true;
+        for (int k = 0; k < 3 && hit; ++k) {
+          const double o = ray.org[k], lo = node.lo[k][l], hi = node.hi[k][l];
+          if (ray.dir[k] == 0) {
+            hit = o >= lo && o <= hi;
+            continue;
+          }
+          double a = (lo - o) * inv[k], b = (hi - o) * inv[k];
+          if (a > b) std::swap(a, b);
+          t0 = std::max(t0, a);
+          t1 = std::min(t1, b * (1 + 1e-12));
+        }
+        if (hit && t0 <= t1) kids[nk++] = {node.child[l], t0};
+      }
+      std::sort(kids, kids + nk, [](const Entry& a, const Entry& b) { return a.t > b.t; });  // nearest on top
+      for (int k = 0; k < nk; ++k) stack.push_back(kids[k]);
+    }
+  }
+
+  struct Entry { uint32_t ref; double t; };
+  std::vector<AlignedBytes> chunks_;
+  std::vector<std::string> labels_;
+  const fmt::TopNode* top_ = nullptr;
+  uint64_t top_count_ = 0;
+  std::vector<Point<W, B>> points_;
+};
+
+}  // namespace
+
+std::unique_ptr<PackageTracer> load_package_in_core(const PackageReader& r) {
+  const uint32_t w = r.header().bvh_width, b = r.header().leaf_width;
+  if (w == 4 && b == 4) return std::make_unique<Tracer<4, 4>>(r);
+  if (w == 8 && b == 8) return std::make_unique<Tracer<8, 8>>(r);
+  if (w == 16 && b == 16) return std::make_unique<Tracer<16, 16>>(r);
+  if (w == 8 && b == 4) return std::make_unique<Tracer<8, 4>>(r);
+  if (w == 16 && b == 8) return std::make_unique<Tracer<16, 8>>(r);
+  fail_invalid("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
+}
+
+}  // namespace rtp

@@ -1,0 +1,308 @@
+// The converter's back end: per chunk (independent, in parallel) BVH build -> section payload ->
+// zstd; in order: append to the package. Resident sections last.
+#include "package/write_package.h"
+
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+
+#include "package/chunk_io.h"
+#include "package/package.h"
+
+namespace rtp {
+namespace {
+
+using fmt::ChunkKind;
+using fmt::SectionType;
+
+Box3f box_of(const Aabb& a) {
+  Box3f b;
+  if (a.empty()) return b;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = std::nextafter(float(a.lo[k]), -Box3f::kInf);
+    b.hi[k] = std::nextafter(float(a.hi[k]), Box3f::kInf);
+  }
+  return b;
+}
+
+template <int W, int B>
+struct ChunkParts {
+  std::vector<fmt::WideNode<W>> nodes;
+  std::vector<fmt::LeafBlock<B>> blocks;
+  std::vector<fmt::MeshEntry> entries;
+  void append(const MeshBvh<W, B>& bvh, uint32_t id, uint64_t triangles) {
+    fmt::MeshEntry e{};
+    e.id = id;
+    e.root = bvh.root;
+    e.node_first = uint32_t(nodes.size());
+    e.node_count = uint32_t(bvh.nodes.size());
+    e.block_first = uint32_t(blocks.size());
+    e.block_count = uint32_t(bvh.blocks.size());
+    e.triangles = triangles;
+    nodes.insert(nodes.end(), bvh.nodes.begin(), bvh.nodes.end());
+    blocks.insert(blocks.end(), bvh.blocks.begin(), bvh.blocks.end());
+    entries.push_back(e);
+  }
+};
+
+struct Job {
+  ChunkKind kind;
+  uint64_t id;
+  AlignedBytes raw;
+  uint64_t node_bytes = 0, block_bytes = 0, triangles = 0;
+};
+
+// A mesh segment: several instanced meshes, each with its BVH in local space (SPEC §4.3).
+template <int W, int B>
+void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOptions& bo, Job& job) {
+  ChunkParts<W, B> parts;
+  for (uint32_t m : seg.meshes) {
+    const MeshBvh<W, B> bvh = build_mesh_bvh<W, B>(scene.meshes[m], bo);
+    parts.append(bvh, m, scene.meshes[m].triangle_count());
+    job.triangles += scene.meshes[m].triangle_count();
+  }
+  ChunkBuilder cb(uint32_t(ChunkKind::kMeshSegment));
+  cb.add(SectionType::kMeshEntries, parts.entries);
+  cb.add(SectionType::kNodes, parts.nodes);
+  cb.add(SectionType::kBlocks, parts.blocks);
+  job.node_bytes = parts.nodes.size() * sizeof(fmt::WideNode<W>);
+  job.block_bytes = parts.blocks.size() * sizeof(fmt::LeafBlock<B>);
+  job.raw = cb.finish();
+}
+
+// A batching point: its world-space pieces with their BVHs, its local instance table and an
+// instance BVH over pieces and instances (SPEC §4.2).
+template <int W, int B>
+void build_point(const Scene& scene, const Plan& plan, const BatchingPoint& bp, const BuildOptions& bo, Job& job) {
+  ChunkParts<W, B> parts;
+  std::vector<fmt::InstanceRecord> records;
+  std::vector<uint32_t> global_ids, slots;
+  std::vector<Box3f> boxes;
+  for (uint32_t k : bp.pieces) {
+    const UniquePiece& piece = plan.pieces[k];
+    MeshBvh<W, B> bvh = build_mesh_bvh<W, B>(piece.mesh, bo);
+    for (auto& blk : bvh.blocks)  // leaves report the triangle's index in the original mesh
+      for (int l = 0; l < B; ++l) blk.prim[l] = piece.prim[blk.prim[l]];
+    const uint32_t entry = uint32_t(parts.entries.size());
+    parts.append(bvh, k, piece.mesh.triangle_count());
+    job.triangles += piece.mesh.triangle_count();
+    const Instance& src = scene.instances[piece.instance];
+    fmt::InstanceRecord r = make_instance_record(Instance{});  // identity: pieces are in world space
+    r.mesh = uint32_t(slots.size());
+    r.source_node = src.node;
+    r.source_gpu_instance = src.gpu_instance;
+    slots.push_back(fmt::kPieceBit | entry);
+    records.push_back(r);
+    global_ids.push_back(piece.instance);
+    boxes.push_back(box_of(piece.mesh.local_bounds()));
+  }
+  std::map<uint32_t, uint32_t> mesh_slot;
+  for (uint32_t i : bp.instances) {
+    const Instance& in = scene.instances[i];
+    auto [it, fresh] = mesh_slot.emplace(in.mesh, uint32_t(slots.size()));
+    if (fresh) slots.push_back(in.mesh);
+    fmt::InstanceRecord r = make_instance_record(in);
+    r.mesh = it->second;
+    records.push_back(r);
+    global_ids.push_back(i);
+    const Box3f local = box_of(scene.meshes[in.mesh].local_bounds());
+    boxes.push_back(transform_bounds(in.transform, &local, 1));
+  }
+  const BoxBvh<W> top = build_box_bvh<W>(boxes, bo, "batching point instance BVH");
+  fmt::MeshEntry te{};
+  te.id = 0xFFFFFFFFu;
+  te.root = top.root;
+  te.node_count = uint32_t(top.nodes.size());
+  te.block_count = uint32_t(top.items.size());
+  te.triangles = bp.unique_triangles + bp.instanced_triangles;
+  ChunkBuilder cb(uint32_t(ChunkKind::kBatchingPoint));
+  cb.add(SectionType::kInstanceBvh, std::vector<fmt::MeshEntry>{te});
+  cb.add(SectionType::kInstanceNodes, top.nodes);
+  cb.add(SectionType::kInstanceIds, top.items);
+  cb.add(SectionType::kInstances, records);
+  cb.add(SectionType::kGlobalIds, global_ids);
+  cb.add(SectionType::kMeshSlots, slots);
+  cb.add(SectionType::kMeshEntries, parts.entries);
+  cb.add(SectionType::kNodes, parts.nodes);
+  cb.add(SectionType::kBlocks, parts.blocks);
+  job.node_bytes = (parts.nodes.size() + top.nodes.size()) * sizeof(fmt::WideNode<W>);
+  job.block_bytes = parts.blocks.size() * sizeof(fmt::LeafBlock<B>);
+  job.raw = cb.finish();
+}
+
+// Resident sections: metadata, top level, descriptors, instances, meshes, source map (SPEC §4.1).
+std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
+  std::vector<Job> jobs;
+  auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
+    Job j{kind, 0, cb.finish()};
+    jobs.push_back(std::move(j));
+  };
+  nlohmann::json meta = o.metadata;
+  meta["format"] = "rtpack";
+  meta["bvh_width"] = o.width;
+  meta["leaf_width"] = o.leaf_width;
+  meta["bvh_build"] = method_name(o.bvh.method);
+  meta["chunk_target"] = plan.chunk_target;
+  meta["chunk_by"] = plan.chunk_by == ChunkBy::kInstanced ? "instanced" : "unique";
+  meta["batching_points"] = plan.points.size();
+  meta["mesh_segments"] = plan.segments.size();
+  meta["pieces"] = plan.pieces.size();
+  nlohmann::json cams = nlohmann::json::array();
+  for (const Camera& c : scene.cameras)
+    cams.push_back({{"name", c.name}, {"type", c.type == Camera::Type::kPerspective ? "perspective" : "orthographic"},
+                    {"yfov", c.yfov}, {"aspect_ratio", c.aspect_ratio}, {"xmag", c.xmag}, {"ymag", c.ymag},
+                    {"znear", c.znear}, {"zfar", c.zfar}, {"world", c.world.m}});
+  meta["cameras"] = cams;
+  nlohmann::json names = nlohmann::json::array();
+  for (const Mesh& m : scene.meshes) names.push_back(m.name);
+  meta["mesh_names"] = names;
+  const std::string text = meta.dump();
+  ChunkBuilder mc(uint32_t(ChunkKind::kMetadata));
+  mc.add_raw(SectionType::kJson, text.data(), text.size(), 1);
+  add(ChunkKind::kMetadata, mc);
+
+  ChunkBuilder tc(uint32_t(ChunkKind::kTopLevelBvh));
+  tc.add(SectionType::kTopNodes, plan.top);
+  add(ChunkKind::kTopLevelBvh, tc);
+
+  std::vector<fmt::BatchingPointDesc> descs;
+  std::vector<uint32_t> seg_refs;
+  for (size_t p = 0; p < plan.points.size(); ++p) {
+    const BatchingPoint& bp = plan.points[p];
+    fmt::BatchingPointDesc d{};
+    const Box3f b = box_of(bp.bounds);
+    for (int k = 0; k < 3; ++k) d.lo[k] = b.lo[k], d.hi[k] = b.hi[k];
+    d.unique_triangles = bp.unique_triangles;
+    d.instanced_triangles = bp.instanced_triangles;
+    d.instance_count = uint32_t(bp.instances.size());
+    d.piece_count = uint32_t(bp.pieces.size());
+    std::vector<uint32_t> segs;
+    for (uint32_t i : bp.instances) segs.push_back(plan.mesh_segment[scene.instances[i].mesh]);
+    std::sort(segs.begin(), segs.end());
+    segs.erase(std::unique(segs.begin(), segs.end()), segs.end());
+    d.segment_first = uint32_t(seg_refs.size());
+    d.segment_count = uint32_t(segs.size());
+    seg_refs.insert(seg_refs.end(), segs.begin(), segs.end());
+    d.chunk_id = uint32_t(p);
+    descs.push_back(d);
+  }
+  ChunkBuilder dc(uint32_t(ChunkKind::kBatchingPoints));
+  dc.add(SectionType::kPointDescs, descs);
+  dc.add(SectionType::kSegmentRefs, seg_refs);
+  add(ChunkKind::kBatchingPoints, dc);
+
+  std::vector<fmt::InstanceRecord> recs;
+  for (const Instance& in : scene.instances) recs.push_back(make_instance_record(in));
+  ChunkBuilder ic(uint32_t(ChunkKind::kInstances));
+  ic.add(SectionType::kInstances, recs);
+  add(ChunkKind::kInstances, ic);
+
+  std::vector<fmt::MeshInfo> infos;
+  std::vector<SourcePrimitive> prims;
+  std::vector<TriangleSource> tris;
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    const Mesh& mesh = scene.meshes[m];
+    fmt::MeshInfo mi{};
+    mi.segment = plan.mesh_segment[m];
+    mi.flags = plan.mesh_instanced[m] ? 1u : 0u;
+    mi.triangles = mesh.triangle_count();
+    mi.source_prim_first = uint32_t(prims.size());
+    mi.source_prim_count = uint32_t(mesh.primitives.size());
+    mi.source_tri_first = tris.size();
+    prims.insert(prims.end(), mesh.primitives.begin(), mesh.primitives.end());
+    tris.insert(tris.end(), mesh.source.begin(), mesh.source.end());
+    infos.push_back(mi);
+  }
+  ChunkBuilder meshc(uint32_t(ChunkKind::kMeshes));
+  meshc.add(SectionType::kMeshTable, infos);
+  add(ChunkKind::kMeshes, meshc);
+  static_assert(sizeof(SourcePrimitive) == 8 && sizeof(TriangleSource) == 8);
+  ChunkBuilder sc(uint32_t(ChunkKind::kSourceMap));
+  sc.add(SectionType::kSourcePrims, prims);
+  sc.add(SectionType::kSourceTris, tris);
+  add(ChunkKind::kSourceMap, sc);
+  return jobs;
+}
+
+template <int W, int B>
+ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& path, const ConvertOptions& o) {
+  PackageWriter writer(path, o.zstd_level);
+  ConvertReport rep;
+  const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6;
+  uint64_t next = 0, written = 0;
+  struct Packed { Job job; std::vector<uint8_t> stored; fmt::Compression comp; uint32_t crc; };
+  auto record = [&](const Job& job, const fmt::TocEntry& e) {
+    SectionBytes& s = rep.by_kind[chunk_kind_name(e.kind)];
+    ++s.chunks;
+    s.raw += e.raw_size;
+    s.stored += e.stored_size;
+    rep.node_bytes += job.node_bytes;
+    rep.block_bytes += job.block_bytes;
+    rep.unique_triangles += job.triangles;
+    ++rep.chunks;
+    if (o.progress) o.progress(++written, total);
+  };
+  // Ordered pipeline: ids in order -> build + compress in parallel -> append in order.
+  const size_t tokens = size_t(2 * tbb::this_task_arena::max_concurrency());
+  tbb::parallel_pipeline(
+      tokens,
+      tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order,
+                                       [&](tbb::flow_control& fc) -> uint64_t {
+                                         if (next == n_seg + n_pts) {
+                                           fc.stop();
+                                           return 0;
+                                         }
+                                         return next++;
+                                       }) &
+          tbb::make_filter<uint64_t, Packed>(tbb::filter_mode::parallel,
+                                             [&](uint64_t k) {
+                                               Packed p;
+                                               if (k < n_seg) {
+                                                 p.job = {ChunkKind::kMeshSegment, k, {}};
+                                                 build_segment<W, B>(scene, plan.segments[k], o.bvh, p.job);
+                                               } else {
+                                                 p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
+                                                 build_point<W, B>(scene, plan, plan.points[k - n_seg], o.bvh, p.job);
+                                               }
+                                               p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
+                                                                                  o.zstd_level, p.comp);
+                                               return p;
+                                             }) &
+          tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
+            const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.stored, p.comp, p.job.raw.size());
+            record(p.job, e);
+          }));
+  for (Job& j : resident_jobs(scene, plan, o)) {
+    const fmt::TocEntry& e = writer.add_chunk(j.kind, j.id, j.raw.data(), j.raw.size());
+    record(j, e);
+  }
+  fmt::Header h{};
+  h.unique_triangles = scene.unique_triangles();
+  h.instanced_triangles = scene.instanced_triangles();
+  const Box3f b = box_of(scene.bounds);
+  for (int k = 0; k < 3; ++k) h.bounds_lo[k] = b.lo[k], h.bounds_hi[k] = b.hi[k];
+  h.bvh_width = uint32_t(W);
+  h.leaf_width = uint32_t(B);
+  writer.finish(h);
+  rep.file_bytes = writer.bytes_written();
+  return rep;
+}
+
+}  // namespace
+
+bool supported_widths(int w, int b) {
+  return (w == 4 && b == 4) || (w == 8 && b == 8) || (w == 16 && b == 16) || (w == 8 && b == 4) || (w == 16 && b == 8);
+}
+
+ConvertReport write_package(const Scene& scene, const Plan& plan, const std::string& path, const ConvertOptions& o) {
+  if (o.width == 4 && o.leaf_width == 4) return write_t<4, 4>(scene, plan, path, o);
+  if (o.width == 8 && o.leaf_width == 8) return write_t<8, 8>(scene, plan, path, o);
+  if (o.width == 16 && o.leaf_width == 16) return write_t<16, 16>(scene, plan, path, o);
+  if (o.width == 8 && o.leaf_width == 4) return write_t<8, 4>(scene, plan, path, o);
+  if (o.width == 16 && o.leaf_width == 8) return write_t<16, 8>(scene, plan, path, o);
+  throw Error(ExitCode::kUsage, "--bvh-width " + std::to_string(o.width) + " with leaf width " + std::to_string(o.leaf_width) +
+                                    ": unsupported (use 4/4, 8/8, 16/16, 8/4 or 16/8)");
+}
+
+}  // namespace rtp

@@ -1,0 +1,44 @@
+#pragma once
+// Scene + batching-point plan -> .rtp package (formats/SPEC.md §4). Chunks are built in parallel and
+// written in order as they complete (memory bounded by the chunks in flight), so the bytes are the
+// same for any thread count.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "bvh/bvh.h"
+#include "cluster/cluster.h"
+
+namespace rtp {
+
+struct ConvertOptions {
+  int width = 8;       // W: 4, 8 or 16
+  int leaf_width = 8;  // B: 4, 8 or 16 (combinations: see supported_widths())
+  BuildOptions bvh;
+  int zstd_level = 9;
+  nlohmann::json metadata = nlohmann::json::object();  // merged into the metadata chunk
+  // Called from the writing thread after each chunk: (chunks written, chunks total).
+  std::function<void(uint64_t, uint64_t)> progress;
+};
+
+struct SectionBytes {
+  uint64_t chunks = 0, raw = 0, stored = 0;
+};
+
+struct ConvertReport {
+  uint64_t file_bytes = 0;
+  uint64_t chunks = 0;
+  std::map<std::string, SectionBytes> by_kind;  // "mesh segment", "batching point", "metadata", ...
+  uint64_t node_bytes = 0, block_bytes = 0;     // raw BVH bytes over all chunks
+  uint64_t unique_triangles = 0;                // triangles stored (pieces + segment meshes)
+};
+
+// True for the (W, B) pairs the kernels are built for: (4,4) (8,8) (16,16) (8,4) (16,8).
+bool supported_widths(int width, int leaf_width);
+
+// Writes `path` atomically; throws rtp::Error (kOutput for I/O, kInputInvalid for format limits).
+ConvertReport write_package(const Scene& scene, const Plan& plan, const std::string& path, const ConvertOptions& options);
+
+}  // namespace rtp
