@@ -1,33 +1,45 @@
-// rtpack-convert: glTF scene -> rtpack package. This build: import + mesh preparation and the
-// scene summary (--dry-run); package writing lands with the package format.
+// rtpack-convert: glTF scene -> chunked .rtp package (import, prepare, batching points, per-chunk
+// wide BVHs, zstd chunks). --dry-run stops after preparation and prints the scene summary.
+#include <tbb/global_control.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
-#include <sys/resource.h>
-#include <unistd.h>
 
+#include "cluster/cluster.h"
 #include "core/error.h"
+#include "core/progress.h"
 #include "mesh/prepare.h"
+#include "package/package.h"
+#include "package/write_package.h"
 #include "scene/import.h"
 #include "scene/summary.h"
 
 namespace {
 
-double peak_rss_mib() {
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  return double(ru.ru_maxrss) / 1024.0;
+using Clock = std::chrono::steady_clock;
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+std::string human(double bytes) {
+  const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
+  char b[32];
+  std::snprintf(b, sizeof b, u ? "%.1f %s" : "%.0f %s", bytes, unit[u]);
+  return b;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"rtpack-convert: prepare a glTF scene for out-of-core ray tracing"};
-  std::string input, output;
+  std::string input, output, build = "collapse", chunk_by = "instanced";
   bool dry_run = false, json = false, quiet = false, verbose = false;
-  int scene_index = -1, subdivide = 0;
+  int scene_index = -1, subdivide = 0, width = 8, leaf_width = 0, zstd_level = 9, threads = 0;
   double weld = -1, subdivide_to = 0;
+  uint64_t chunk_target = 0;
   app.add_option("input", input, "input .gltf or .glb")->required();
   app.add_option("-o,--output", output, "output package (.rtp)");
   app.add_flag("--dry-run", dry_run, "import and prepare only; print the scene summary");
@@ -37,51 +49,139 @@ int main(int argc, char** argv) {
   auto* sub = app.add_option("--subdivide", subdivide, "uniform Loop subdivision levels")->check(CLI::Range(0, 8));
   app.add_option("--subdivide-to", subdivide_to, "refine each mesh until its longest world-space edge is below LENGTH")
       ->check(CLI::PositiveNumber)->excludes(sub);
-  app.add_flag("-q,--quiet", quiet, "no warnings on stderr");
+  app.add_option("--bvh-width", width, "BVH width W: 4, 8 or 16 (default 8)")->check(CLI::IsMember({4, 8, 16}));
+  app.add_option("--leaf-width", leaf_width, "triangles per leaf block B: 4, 8 or 16 (default W, 8 for W=16)")
+      ->check(CLI::IsMember({4, 8, 16}));
+  app.add_option("--bvh-build", build, "collapse (SAH collapse, default) or split (top-down W-way)")
+      ->check(CLI::IsMember({"collapse", "split"}));
+  app.add_option("--chunk-target", chunk_target, "triangles per batching point (default: derived from the scene)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--chunk-by", chunk_by, "count instanced (default) or unique triangles toward the target")
+      ->check(CLI::IsMember({"instanced", "unique"}));
+  app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default 9)")->check(CLI::Range(0, 22));
+  app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("-q,--quiet", quiet, "no warnings or progress on stderr");
   app.add_flag("-v,--verbose", verbose, "stage times and peak memory on stderr");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : int(rtp::ExitCode::kUsage);
   }
-  if (!dry_run) {
-    std::cerr << "rtpack-convert: this build only prepares and summarizes scenes; run with --dry-run "
-                 "(package output comes with the package format)\n";
+  if (!dry_run && output.empty()) {
+    std::cerr << "rtpack-convert: -o OUTPUT is required (or --dry-run)\n";
     return int(rtp::ExitCode::kUsage);
   }
-  using clock = std::chrono::steady_clock;
+  if (leaf_width == 0) leaf_width = width == 16 ? 8 : width;
+  if (!rtp::supported_widths(width, leaf_width)) {
+    std::cerr << "rtpack-convert: --bvh-width " << width << " --leaf-width " << leaf_width
+              << " is not a supported pair (4/4, 8/8, 16/16, 8/4, 16/8)\n";
+    return int(rtp::ExitCode::kUsage);
+  }
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+  rtp::Progress progress(!quiet && !json);
   try {
-    const auto t0 = clock::now();
+    if (!dry_run) rtp::check_output_path(output);  // before any work
+    const auto t0 = Clock::now();
+    progress.stage("import");
     rtp::ImportOptions opt;
     opt.scene = scene_index;
     rtp::Scene scene = rtp::import_gltf(input, opt);
-    const auto t1 = clock::now();
+    const auto t1 = Clock::now();
+    progress.stage("prepare");
     rtp::PrepareOptions prep;
     prep.clean.weld_eps = weld;
     prep.subdivide_levels = subdivide;
     prep.subdivide_to = subdivide_to;
     const rtp::PrepareReport report = rtp::prepare_scene(scene, prep);
-    const auto t2 = clock::now();
+    const auto t2 = Clock::now();
+    progress.finish();
     if (!quiet)
       for (const auto& w : scene.warnings) std::cerr << "warning: " << input << ": " << w << "\n";
-    if (json) {
-      nlohmann::json j = rtp::scene_summary_json(scene);
-      j["preparation"] = rtp::prepare_report_json(report);
-      std::cout << j.dump(2) << "\n";
-    } else {
-      std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(report);
+    if (dry_run) {
+      if (json) {
+        nlohmann::json j = rtp::scene_summary_json(scene);
+        j["preparation"] = rtp::prepare_report_json(report);
+        std::cout << j.dump(2) << "\n";
+      } else {
+        std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(report);
+      }
+      if (verbose)
+        std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n", seconds(t0, t1), seconds(t1, t2),
+                     rtp::peak_rss_mib());
+      return 0;
     }
-    if (verbose)
-      std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n",
-                   std::chrono::duration<double>(t1 - t0).count(), std::chrono::duration<double>(t2 - t1).count(),
-                   peak_rss_mib());
+    progress.stage("batching points");
+    rtp::ClusterOptions co;
+    co.chunk_target = chunk_target;
+    co.chunk_by = chunk_by == "unique" ? rtp::ChunkBy::kUnique : rtp::ChunkBy::kInstanced;
+    const rtp::Plan plan = rtp::plan_batching_points(scene, co);
+    const auto t3 = Clock::now();
+    progress.stage("chunks");
+    rtp::ConvertOptions cv;
+    cv.width = width;
+    cv.leaf_width = leaf_width;
+    cv.bvh.method = build == "split" ? rtp::BuildMethod::kSplit : rtp::BuildMethod::kCollapse;
+    cv.zstd_level = zstd_level;
+    cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
+    cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
+                   {"source", std::filesystem::path(input).filename().string()},
+                   {"options",
+                    {{"bvh_width", width}, {"leaf_width", leaf_width}, {"bvh_build", build}, {"chunk_target", chunk_target},
+                     {"chunk_by", chunk_by}, {"zstd_level", zstd_level}, {"subdivide", subdivide},
+                     {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene}}}};
+    const rtp::ConvertReport rep = rtp::write_package(scene, plan, output, cv);
+    const auto t4 = Clock::now();
+    progress.finish();
+    const double in_bytes = double(std::filesystem::file_size(input));
+    const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
+    nlohmann::json sections = nlohmann::json::object();
+    for (const auto& [kind, s] : rep.by_kind)
+      sections[kind] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
+                        {"bytes_per_unique_triangle", double(s.stored) / tris}};
+    nlohmann::json j = {{"input", input},
+                        {"output", output},
+                        {"input_bytes", uint64_t(in_bytes)},
+                        {"output_bytes", rep.file_bytes},
+                        {"chunks", rep.chunks},
+                        {"batching_points", plan.points.size()},
+                        {"mesh_segments", plan.segments.size()},
+                        {"chunk_target", plan.chunk_target},
+                        {"unique_triangles", scene.unique_triangles()},
+                        {"instanced_triangles", scene.instanced_triangles()},
+                        {"bytes_per_unique_triangle", double(rep.file_bytes) / tris},
+                        {"sections", sections},
+                        {"seconds", {{"import", seconds(t0, t1)}, {"prepare", seconds(t1, t2)}, {"plan", seconds(t2, t3)},
+                                     {"chunks", seconds(t3, t4)}, {"total", seconds(t0, t4)}}},
+                        {"peak_rss_mib", rtp::peak_rss_mib()}};
+    if (json) {
+      std::cout << j.dump(2) << "\n";
+    } else if (!quiet) {
+      std::printf("%s -> %s\n", input.c_str(), output.c_str());
+      std::printf("  triangles      %llu unique, %llu instanced\n", (unsigned long long)scene.unique_triangles(),
+                  (unsigned long long)scene.instanced_triangles());
+      std::printf("  chunks         %llu (%zu batching points, %zu mesh segments; target %llu triangles)\n",
+                  (unsigned long long)rep.chunks, plan.points.size(), plan.segments.size(),
+                  (unsigned long long)plan.chunk_target);
+      std::printf("  bytes          %s -> %s (%.1f B per unique triangle)\n", human(in_bytes).c_str(),
+                  human(double(rep.file_bytes)).c_str(), double(rep.file_bytes) / tris);
+      for (const auto& [kind, s] : rep.by_kind)
+        std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
+                    human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
+      std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n",
+                  seconds(t0, t1), seconds(t1, t2), seconds(t2, t3), seconds(t3, t4), rtp::peak_rss_mib());
+    }
   } catch (const rtp::Error& e) {
+    progress.finish();
     std::cerr << "error: " << input << ": " << e.what() << "\n";
     return int(e.code());
   } catch (const std::bad_alloc&) {
+    progress.finish();
     std::cerr << "error: " << input << ": out of memory\n";
     return int(rtp::ExitCode::kInternal);
   } catch (const std::exception& e) {
+    progress.finish();
     std::cerr << "error: " << input << ": internal error: " << e.what() << "\n";
     return int(rtp::ExitCode::kInternal);
   }

@@ -20,6 +20,10 @@ uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
 std::string chunk_label(const fmt::TocEntry& e, size_t toc_index);
 const char* chunk_kind_name(uint32_t kind);
 
+// Checks before any work that `path` can be written: its directory exists and is writable, it is
+// not a directory, and an existing file there is writable. Throws Error(kOutput).
+void check_output_path(const std::string& path);
+
 class PackageWriter {
  public:
   // Creates `<path>.tmp-<pid>` next to `path`; nothing appears at `path` before finish().

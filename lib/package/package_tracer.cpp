@@ -210,7 +210,8 @@ class Tracer final : public PackageTracer {
         }
         if (hit && t0 <= t1) kids[nk++] = {node.child[l], t0};
       }
-      std::sort(kids, kids + nk, [](const Entry& a, const Entry& b) { return a.t > b.t; });  // nearest on top
+      for (int a = 1; a < nk; ++a)  // insertion sort, farthest first: the nearest ends on top
+        for (int b = a; b > 0 && kids[b - 1].t < kids[b].t; --b) std::swap(kids[b - 1], kids[b]);
       for (int k = 0; k < nk; ++k) stack.push_back(kids[k]);
     }
   }

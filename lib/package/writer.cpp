@@ -14,6 +14,19 @@
 
 namespace rtp {
 
+void check_output_path(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (path.empty()) throw Error(ExitCode::kOutput, "no output path");
+  if (fs::is_directory(path, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': it is a directory");
+  const fs::path dir = fs::absolute(path, ec).parent_path();
+  if (!fs::is_directory(dir, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': no directory " + dir.string());
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw Error(ExitCode::kOutput, "cannot write '" + path + "': directory " + dir.string() + " is not writable");
+  if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
+    throw Error(ExitCode::kOutput, "cannot write '" + path + "': the existing file is not writable");
+}
+
 PackageWriter::PackageWriter(const std::string& path, int zstd_level) : path_(path), level_(zstd_level) {
   namespace fs = std::filesystem;
   if (zstd_level < 0 || zstd_level > ZSTD_maxCLevel())

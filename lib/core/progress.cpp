@@ -1,0 +1,55 @@
+#include "core/progress.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+
+namespace rtp {
+
+double peak_rss_mib() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_maxrss) / 1024.0;
+}
+
+double current_rss_mib() {
+  std::ifstream f("/proc/self/statm");
+  uint64_t size = 0, resident = 0;
+  f >> size >> resident;
+  return double(resident) * double(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
+
+Progress::Progress(bool enabled) : on_(enabled && isatty(STDERR_FILENO)) {}
+Progress::~Progress() { finish(); }
+
+void Progress::stage(const std::string& name) {
+  finish();
+  stage_ = name;
+  start_ = last_ = std::chrono::steady_clock::now();
+  if (on_) {
+    std::fprintf(stderr, "\r\033[K%s ...", stage_.c_str());
+    drawn_ = true;
+  }
+}
+
+void Progress::update(uint64_t done, uint64_t total) {
+  if (!on_ || total == 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (done < total && now - last_ < std::chrono::milliseconds(200)) return;
+  last_ = now;
+  const double el = std::chrono::duration<double>(now - start_).count();
+  const double frac = double(done) / double(total);
+  const double eta = frac > 0 ? el * (1 - frac) / frac : 0;
+  std::fprintf(stderr, "\r\033[K%s %5.1f%%  %llu/%llu  ETA %.0f s  RSS %.0f MiB", stage_.c_str(), 100 * frac,
+               static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), eta, current_rss_mib());
+  drawn_ = true;
+}
+
+void Progress::finish() {
+  if (on_ && drawn_) std::fprintf(stderr, "\r\033[K");
+  drawn_ = false;
+}
+
+}  // namespace rtp

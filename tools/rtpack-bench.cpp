@@ -1,0 +1,467 @@
+// rtpack-bench: rtpack's in-core tracer against Embree 3 (ROBUST, HIGH) on the same rays, in the same run.
+//
+// Loads a glTF scene, builds Embree directly from it and rtpack's InCoreScene<W,W> for each width,
+// generates the rays once (lib/oracle/rays.h, seeded), times both tracers on exactly those rays
+// (best of --reps after one warm-up run; 1..T threads through tbb::task_arena), and verifies, untimed,
+// that every timed rtpack answer agrees with Embree ray by ray (lib/oracle/compare.h). Shadow rays
+// are timed as any-hit queries (trace_any vs rtcOccluded1M), every other kind as closest hit.
+//
+// Exit codes: 0 ok, 1 usage, 2 input unreadable, 3 invalid input (or no triangles), 5 rtpack disagreed
+// with Embree on some ray (the numbers are printed, but they are not worth anything).
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "bvh/bvh.h"
+#include "core/error.h"
+#include "oracle/compare.h"
+#include "oracle/embree_oracle.h"
+#include "oracle/rays.h"
+#include "scene/import.h"
+#include "trace/trace.h"
+
+namespace {
+
+using namespace rtp;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers (EmbreeOracle uses 256)
+
+struct Config {
+  std::string scene_path;
+  size_t rays = 1u << 19;
+  std::vector<RayKind> kinds;
+  std::vector<int> widths;
+  std::vector<int> threads;
+  std::vector<TraversalOrder> orders;
+  Isa isa = Isa::kScalar;
+  int reps = 3;
+  uint64_t seed = 1;
+  bool json = false;
+  bool build_stats = false;
+};
+
+bool g_progress = false;
+void progress(const std::string& s) {
+  if (g_progress) std::fprintf(stderr, "\r\033[K%s", s.c_str());
+}
+void progress_done() {
+  if (g_progress) std::fprintf(stderr, "\r\033[K");
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// One warm-up run, then the best of `reps`.
+template <class F>
+double best_of(int reps, F&& f) {
+  f();
+  double best = std::numeric_limits<double>::infinity();
+  for (int r = 0; r < reps; ++r) {
+    const auto t0 = Clock::now();
+    f();
+    best = std::min(best, seconds_since(t0));
+  }
+  return best;
+}
+
+std::vector<std::string> split_list(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+std::string cpu_model() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("model name", 0) == 0) {
+      const size_t p = line.find(':');
+      if (p != std::string::npos) return line.substr(p + 2);
+    }
+  return "unknown";
+}
+
+// The rays of one kind and Embree's answers to them (the reference for the agreement check).
+struct KindData {
+  RayKind kind;
+  bool any = false;  // timed as any-hit
+  std::vector<fmt::Ray> rays;
+  std::vector<fmt::Hit> ref_hits;  // Embree closest hits (reference for both query types)
+  std::vector<uint8_t> skip;       // rays Embree cannot take: no reference
+  RayGenInfo info;
+  double embree_seconds[65] = {};  // by thread count (best of reps)
+};
+
+struct Agreement {
+  uint64_t agree = 0, edge_ties = 0, failures = 0, skipped = 0;
+  std::string first_failure;
+};
+
+Agreement agreement_closest(const KindData& k, const std::vector<fmt::Hit>& got) {
+  const CompareReport r = compare_closest(k.rays.data(), k.ref_hits.data(), got.data(), k.rays.size(), {}, k.skip.data());
+  Agreement a{r.agree(), r.edge_ties, r.failures, r.skipped, {}};
+  if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
+  return a;
+}
+
+Agreement agreement_any(const KindData& k, const std::vector<uint8_t>& occ) {
+  const AnyHitReport r = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), k.rays.size(), {}, k.skip.data());
+  Agreement a{r.consistent, r.edge_ties, r.failures, r.skipped, {}};
+  if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
+  return a;
+}
+
+struct Record {
+  RayKind kind;
+  int width = 0;
+  TraversalOrder order;
+  int threads = 0;
+  double rtpack_mrays = 0, embree_mrays = 0;
+  double bytes_per_triangle = 0;
+  Agreement agreement;
+};
+
+struct BuildRecord {
+  int width = 0;
+  int threads = 0;
+  double rtpack_seconds = 0, embree_seconds = 0;
+  double bytes_per_triangle = 0;
+  uint64_t bvh_bytes = 0;
+};
+
+template <int W>
+uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
+  uint64_t b = 0;
+  for (size_t m = 0; m < s.mesh_count(); ++m) b += s.mesh_stats(m).node_bytes + s.mesh_stats(m).block_bytes;
+  return b;
+}
+
+template <int W>
+void run_width(const Config& cfg, const Scene& scene, std::vector<KindData>& kinds, std::vector<Record>& records,
+               std::vector<BuildRecord>& builds) {
+  const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
+  progress("building rtpack W=" + std::to_string(W) + " ...");
+  std::optional<InCoreScene<W, W>> bvh;
+  {
+    tbb::task_arena arena(max_threads);
+    arena.execute([&] { bvh.emplace(InCoreScene<W, W>::build(scene)); });
+  }
+  const double unique = double(std::max<uint64_t>(1, scene.unique_triangles()));
+  const uint64_t bytes = mesh_bvh_bytes(*bvh);
+  const double bpt = double(bytes) / unique;
+
+  if (cfg.build_stats) {
+    for (int t : cfg.threads) {
+      tbb::task_arena arena(t);
+      BuildRecord br;
+      br.width = W;
+      br.threads = t;
+      br.bytes_per_triangle = bpt;
+      br.bvh_bytes = bytes;
+      const int reps = std::max(1, std::min(cfg.reps, 3));
+      progress("build timing W=" + std::to_string(W) + " T=" + std::to_string(t) + " ...");
+      arena.execute([&] {
+        br.rtpack_seconds = best_of(reps, [&] { (void)InCoreScene<W, W>::build(scene); });
+        br.embree_seconds = std::numeric_limits<double>::infinity();
+        for (int r = 0; r < reps + 1; ++r) {
+          EmbreeOracle e(scene, OracleQuality::kHigh);
+          if (r > 0) br.embree_seconds = std::min(br.embree_seconds, e.build_seconds());
+        }
+      });
+      builds.push_back(br);
+    }
+  }
+
+  const SceneView<W, W> view = bvh->view();
+  for (KindData& k : kinds) {
+    const size_t n = k.rays.size();
+    std::vector<fmt::Hit> hits(n);
+    std::vector<uint8_t> occ(n);
+    for (TraversalOrder order : cfg.orders) {
+      const TraceOptions topt{cfg.isa, order};
+      for (int t : cfg.threads) {
+        progress(std::string("timing ") + ray_kind_name(k.kind) + " W=" + std::to_string(W) + " " + order_name(order) +
+                 " T=" + std::to_string(t) + " ...");
+        tbb::task_arena arena(t);
+        double secs = 0;
+        arena.execute([&] {
+          secs = best_of(cfg.reps, [&] {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+              if (k.any)
+                trace_any<W, W>(view, k.rays.data() + r.begin(), occ.data() + r.begin(), r.size(), topt);
+              else
+                trace_closest<W, W>(view, k.rays.data() + r.begin(), hits.data() + r.begin(), r.size(), topt);
+            });
+          });
+        });
+        Record rec;
+        rec.kind = k.kind;
+        rec.width = W;
+        rec.order = order;
+        rec.threads = t;
+        rec.rtpack_mrays = double(n) / secs * 1e-6;
+        rec.embree_mrays = double(n) / k.embree_seconds[t] * 1e-6;
+        rec.bytes_per_triangle = bpt;
+        rec.agreement = k.any ? agreement_any(k, occ) : agreement_closest(k, hits);  // the timed answers
+        records.push_back(rec);
+      }
+    }
+  }
+}
+
+int run(const Config& cfg) {
+  const auto t_load = Clock::now();
+  progress("loading " + cfg.scene_path + " ...");
+  const Scene scene = import_gltf(cfg.scene_path);
+  if (scene.instanced_triangles() == 0) throw Error(ExitCode::kInputInvalid, cfg.scene_path + ": the scene has no triangles");
+  const double load_s = seconds_since(t_load);
+  const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
+
+  progress("building Embree (ROBUST, HIGH) ...");
+  std::optional<EmbreeOracle> embree;
+  {
+    tbb::task_arena arena(max_threads);
+    arena.execute([&] { embree.emplace(scene, OracleQuality::kHigh); });
+  }
+
+  // Rays, once; Embree's answers and timings on them.
+  std::vector<KindData> kinds;
+  for (RayKind kind : cfg.kinds) {
+    progress(std::string("generating ") + ray_kind_name(kind) + " rays ...");
+    KindData k;
+    k.kind = kind;
+    k.any = kind == RayKind::kShadow;
+    RayGenOptions gen;
+    gen.seed = cfg.seed;
+    gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { embree->closest(r, h, n); };
+    k.rays = generate_rays(scene, kind, cfg.rays, gen, &k.info);
+    const size_t n = k.rays.size();
+    k.ref_hits.resize(n);
+    embree->closest(k.rays.data(), k.ref_hits.data(), n);
+    k.skip = unsupported_mask(k.rays.data(), n);
+    const RayCoherence coh = kind == RayKind::kPrimary ? RayCoherence::kCoherent : RayCoherence::kIncoherent;
+    std::vector<fmt::Hit> hits(n);
+    std::vector<uint8_t> occ(n);
+    for (int t : cfg.threads) {
+      progress(std::string("timing Embree ") + ray_kind_name(kind) + " T=" + std::to_string(t) + " ...");
+      tbb::task_arena arena(t);
+      arena.execute([&] {
+        k.embree_seconds[t] = best_of(cfg.reps, [&] {
+          if (k.any)
+            embree->occluded(k.rays.data(), occ.data(), n, coh);
+          else
+            embree->closest(k.rays.data(), hits.data(), n, coh);
+        });
+      });
+    }
+    kinds.push_back(std::move(k));
+  }
+
+  std::vector<Record> records;
+  std::vector<BuildRecord> builds;
+  for (int w : cfg.widths) {
+    if (w == 4) run_width<4>(cfg, scene, kinds, records, builds);
+    if (w == 8) run_width<8>(cfg, scene, kinds, records, builds);
+    if (w == 16) run_width<16>(cfg, scene, kinds, records, builds);
+  }
+
+  // The SAH table of lib/bvh (whole scene flattened when small enough, else the scene's meshes).
+  std::string sah_table;
+  if (cfg.build_stats) {
+    progress("SAH statistics ...");
+    std::vector<BvhStatsRow> rows;
+    const std::string base = cfg.scene_path.substr(cfg.scene_path.find_last_of('/') + 1);
+    if (scene.instanced_triangles() <= 2'000'000) {
+      rows = bvh_stats_rows(base, flatten_scene(scene));
+    } else {
+      for (const Mesh& m : scene.meshes) {
+        if (m.triangle_count() == 0) continue;
+        auto r = bvh_stats_rows(base + ":" + m.name, m);
+        rows.insert(rows.end(), r.begin(), r.end());
+      }
+    }
+    sah_table = bvh_stats_table(rows);
+  }
+  progress_done();
+
+  uint64_t failures = 0;
+  for (const Record& r : records) failures += r.agreement.failures;
+  const std::string cpu = cpu_model();
+
+  if (cfg.json) {
+    json out = json::array();
+    for (const Record& r : records) {
+      const KindData* k = nullptr;
+      for (const KindData& x : kinds)
+        if (x.kind == r.kind) k = &x;
+      out.push_back({{"type", "trace"},
+                     {"scene", cfg.scene_path},
+                     {"kind", ray_kind_name(r.kind)},
+                     {"query", k->any ? "any" : "closest"},
+                     {"width", r.width},
+                     {"block", r.width},
+                     {"order", order_name(r.order)},
+                     {"isa", isa_name(cfg.isa)},
+                     {"threads", r.threads},
+                     {"rays", k->rays.size()},
+                     {"rtpack_mrays", r.rtpack_mrays},
+                     {"embree_mrays", r.embree_mrays},
+                     {"ratio", r.rtpack_mrays / r.embree_mrays},
+                     {"bytes_per_triangle", r.bytes_per_triangle},
+                     {"agree", r.agreement.agree},
+                     {"edge_ties", r.agreement.edge_ties},
+                     {"failures", r.agreement.failures},
+                     {"skipped", r.agreement.skipped},
+                     {"cpu", cpu}});
+    }
+    for (const BuildRecord& b : builds)
+      out.push_back({{"type", "build"},
+                     {"scene", cfg.scene_path},
+                     {"width", b.width},
+                     {"block", b.width},
+                     {"threads", b.threads},
+                     {"rtpack_build_s", b.rtpack_seconds},
+                     {"embree_high_build_s", b.embree_seconds},
+                     {"ratio", b.embree_seconds / b.rtpack_seconds},
+                     {"bvh_bytes", b.bvh_bytes},
+                     {"bytes_per_triangle", b.bytes_per_triangle},
+                     {"cpu", cpu}});
+    std::cout << out.dump(1) << "\n";
+  }
+
+  // Human-readable report: stdout, or stderr when stdout carries JSON.
+  FILE* o = cfg.json ? stderr : stdout;
+  std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
+               cfg.scene_path.c_str(), scene.instanced_triangles(), scene.unique_triangles(), scene.meshes.size(),
+               scene.instances.size(), load_s);
+  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d after a warm-up\n", cpu.c_str(),
+               isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
+  for (const KindData& k : kinds)
+    if (k.info.fallback)
+      std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
+  std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
+               "Embree Mrays/s", "ratio", "B/tri", "agree / edge ties / FAILURES / skipped");
+  for (const Record& r : records) {
+    const bool any = r.kind == RayKind::kShadow;
+    std::fprintf(o, "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64 "\n",
+                 ray_kind_name(r.kind), any ? "any" : "closest", r.width, order_name(r.order), r.threads, r.rtpack_mrays,
+                 r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
+                 r.agreement.edge_ties, r.agreement.failures, r.agreement.skipped);
+  }
+  if (!builds.empty()) {
+    std::fprintf(o, "\nbuild (same triangles; Embree ROBUST + HIGH quality):\n%3s %3s %12s %14s %15s %10s\n", "W", "T",
+                 "rtpack s", "Embree HIGH s", "Embree/rtpack", "B/tri");
+    for (const BuildRecord& b : builds)
+      std::fprintf(o, "%3d %3d %12.3f %14.3f %15.2f %10.1f\n", b.width, b.threads, b.rtpack_seconds, b.embree_seconds,
+                   b.embree_seconds / b.rtpack_seconds, b.bytes_per_triangle);
+    std::fprintf(o, "\nSAH statistics (lib/bvh, Benthin 2008 Table 1 style):\n%s\n", sah_table.c_str());
+  }
+  if (failures) {
+    std::fprintf(o, "\nAGREEMENT FAILURES: rtpack disagrees with Embree on %" PRIu64 " rays; these numbers are worthless.\n",
+                 failures);
+    for (const Record& r : records)
+      if (!r.agreement.first_failure.empty()) {
+        std::fprintf(o, "first failure (%s W=%d %s T=%d):\n%s", ray_kind_name(r.kind), r.width, order_name(r.order),
+                     r.threads, r.agreement.first_failure.c_str());
+        break;
+      }
+    return int(ExitCode::kInternal);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rtpack-bench: rtpack's in-core tracer vs Embree 3 (ROBUST) on the same rays, same run"};
+  Config cfg;
+  std::string kinds = "primary,random,bounce,shadow", width = "all", threads = "all", order = "all", isa = "best";
+  app.add_option("scene", cfg.scene_path, "input .gltf or .glb")->required();
+  app.add_option("--rays", cfg.rays, "rays per kind (default 524288)")->check(CLI::Range(size_t(1), size_t(1) << 30));
+  app.add_option("--kinds", kinds, "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
+  app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default all)");
+  app.add_option("--threads", threads, "thread count or all (1, 2, 4, ... up to the hardware threads; default all)");
+  app.add_option("--order", order, "traversal order: octant, active or all (default all)");
+  app.add_option("--isa", isa, "best, scalar, avx2 or avx512 (default best)");
+  app.add_option("--reps", cfg.reps, "timed repetitions, best taken (default 3)")->check(CLI::Range(1, 100));
+  app.add_option("--seed", cfg.seed, "ray generator seed (default 1)");
+  app.add_flag("--json", cfg.json, "print the records as a JSON array on stdout (the table goes to stderr)");
+  app.add_flag("--build-stats", cfg.build_stats, "also time BVH builds against Embree HIGH and print lib/bvh's SAH table");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : int(ExitCode::kUsage);
+  }
+  auto usage = [](const std::string& msg) {
+    std::cerr << "rtpack-bench: " << msg << "\n";
+    return int(ExitCode::kUsage);
+  };
+  for (const std::string& k : split_list(kinds)) {
+    const auto kind = parse_ray_kind(k);
+    if (!kind) return usage("unknown ray kind '" + k + "' (primary, random, bounce, shadow, inside, short)");
+    if (std::find(cfg.kinds.begin(), cfg.kinds.end(), *kind) == cfg.kinds.end()) cfg.kinds.push_back(*kind);
+  }
+  if (cfg.kinds.empty()) return usage("--kinds is empty");
+  if (width == "all") cfg.widths = {4, 8, 16};
+  else if (width == "4" || width == "8" || width == "16") cfg.widths = {std::stoi(width)};
+  else return usage("--width must be 4, 8, 16 or all, not '" + width + "'");
+  const int hw = std::max(1, tbb::info::default_concurrency());
+  if (threads == "all") {
+    for (int t = 1; t < hw; t *= 2) cfg.threads.push_back(t);
+    cfg.threads.push_back(hw);
+  } else {
+    char* end = nullptr;
+    const long t = std::strtol(threads.c_str(), &end, 10);
+    if (threads.empty() || *end != '\0' || t < 1 || t > 64) return usage("--threads must be 1..64 or all, not '" + threads + "'");
+    cfg.threads = {int(t)};
+  }
+  if (order == "all") cfg.orders = {TraversalOrder::kOctantStack, TraversalOrder::kActiveList};
+  else if (order == "octant") cfg.orders = {TraversalOrder::kOctantStack};
+  else if (order == "active") cfg.orders = {TraversalOrder::kActiveList};
+  else return usage("--order must be octant, active or all, not '" + order + "'");
+  const Isa best = detect_isa();
+  if (isa == "best") cfg.isa = best;
+  else if (isa == "scalar") cfg.isa = Isa::kScalar;
+  else if (isa == "avx2") cfg.isa = Isa::kAvx2;
+  else if (isa == "avx512") cfg.isa = Isa::kAvx512;
+  else return usage("--isa must be best, scalar, avx2 or avx512, not '" + isa + "'");
+  if (int(cfg.isa) > int(best)) return usage(std::string("this CPU does not support ") + isa + " (best: " + isa_name(best) + ")");
+  g_progress = isatty(2) != 0;
+  try {
+    return run(cfg);
+  } catch (const Error& e) {
+    progress_done();
+    std::cerr << "rtpack-bench: " << e.what() << "\n";
+    return int(e.code());
+  } catch (const std::bad_alloc&) {
+    progress_done();
+    std::cerr << "rtpack-bench: out of memory\n";
+    return int(ExitCode::kInternal);
+  } catch (const std::exception& e) {
+    progress_done();
+    std::cerr << "rtpack-bench: " << e.what() << "\n";
+    return int(ExitCode::kInternal);
+  }
+}

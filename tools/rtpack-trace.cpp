@@ -1,0 +1,123 @@
+// rtpack-trace: traces a ray file through a package (in core) and writes a hit file — the way
+// outside tools check rtpack (formats/SPEC.md §5).
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include "core/error.h"
+#include "package/package.h"
+#include "package/package_tracer.h"
+
+namespace {
+
+std::vector<rtp::fmt::Ray> read_rays(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const uint64_t size = fs::file_size(path, ec);
+  if (ec) throw rtp::Error(rtp::ExitCode::kInputIo, "cannot open ray file '" + path + "'");
+  if (size % sizeof(rtp::fmt::Ray))
+    rtp::fail_invalid("ray file '" + path + "': " + std::to_string(size) + " bytes is not a multiple of 32 (8 float32 per ray)");
+  std::vector<rtp::fmt::Ray> rays(size / sizeof(rtp::fmt::Ray));
+  std::ifstream f(path, std::ios::binary);
+  if (!f.read(reinterpret_cast<char*>(rays.data()), std::streamsize(size)))
+    throw rtp::Error(rtp::ExitCode::kInputIo, "cannot read ray file '" + path + "'");
+  return rays;
+}
+
+void write_atomically(const std::string& path, const void* data, size_t size) {
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f || !f.write(static_cast<const char*>(data), std::streamsize(size)) || !f.flush()) {
+      std::filesystem::remove(tmp);
+      throw rtp::Error(rtp::ExitCode::kOutput, "cannot write '" + path + "'");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp);
+    throw rtp::Error(rtp::ExitCode::kOutput, "cannot write '" + path + "': " + ec.message());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rtpack-trace: trace a ray file through a package"};
+  std::string package, rays_path, hits_path, isa = "best", order = "octant";
+  int threads = 0;
+  bool any = false, json = false, direct = false;
+  app.add_option("package", package, "the .rtp package")->required();
+  app.add_option("--rays", rays_path, "ray file: N x {ox oy oz tnear dx dy dz tfar} float32")->required();
+  app.add_option("--hits", hits_path, "hit file to write: N x {t, instance, primitive, u, v} (or N bytes with --any)")->required();
+  app.add_flag("--any", any, "any-hit (occlusion): write one byte per ray, 1 = occluded");
+  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
+  app.add_option("--order", order, "traversal order: octant (stack) or active (Benthin's active list)")
+      ->check(CLI::IsMember({"octant", "active"}));
+  app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
+  app.add_flag("--json", json, "print the counts as JSON on stdout");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : int(rtp::ExitCode::kUsage);
+  }
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+  try {
+    rtp::check_output_path(hits_path);
+    const rtp::PackageReader reader(package, direct);
+    const auto tracer = rtp::load_package_in_core(reader);
+    const std::vector<rtp::fmt::Ray> rays = read_rays(rays_path);
+    rtp::TraceOptions opt;
+    const rtp::Isa best = rtp::detect_isa();
+    opt.isa = isa == "best" ? best : isa == "avx512" ? rtp::Isa::kAvx512 : isa == "avx2" ? rtp::Isa::kAvx2 : rtp::Isa::kScalar;
+    if (int(opt.isa) > int(best))
+      throw rtp::Error(rtp::ExitCode::kUsage, std::string("--isa ") + isa + ": this CPU supports up to " + rtp::isa_name(best));
+    opt.order = order == "active" ? rtp::TraversalOrder::kActiveList : rtp::TraversalOrder::kOctantStack;
+    std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size());
+    std::vector<uint8_t> occ(any ? rays.size() : 0);
+    std::atomic<uint64_t> invalid{0};
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+      const rtp::TraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
+                                     : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
+      invalid += st.invalid_rays;
+    });
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    uint64_t hit_count = 0;
+    if (any) {
+      for (uint8_t o : occ) hit_count += o;
+      write_atomically(hits_path, occ.data(), occ.size());
+    } else {
+      for (const auto& h : hits) hit_count += h.t != std::numeric_limits<float>::infinity();
+      write_atomically(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
+    }
+    nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
+                        {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
+                        {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
+                        {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
+    if (json) std::cout << j.dump(2) << "\n";
+    else
+      std::fprintf(stderr, "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s)\n",
+                   rays.size(), (unsigned long long)hit_count, any ? "occluded" : "hits",
+                   (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str());
+  } catch (const rtp::Error& e) {
+    std::cerr << "error: " << package << ": " << e.what() << "\n";
+    return int(e.code());
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << package << ": internal error: " << e.what() << "\n";
+    return int(rtp::ExitCode::kInternal);
+  }
+  return 0;
+}
