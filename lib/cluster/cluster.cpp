@@ -188,17 +188,16 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
       objs.push_back(o);
       continue;
     }
-    // The single instance of a unique mesh: world space, split into pieces; the source map
+    // The single instance of a unique mesh, split into pieces that stay in the mesh's local space
+    // (with the instance's transform: no precision lost far from the origin). The source map
     // temporarily carries the original triangle index through split_mesh.
-    Mesh world = src;
-    for (auto& p : world.positions) {
-      const Vec3d w = in.transform.apply(to_d(p));
-      p = {float(w.x), float(w.y), float(w.z)};
-    }
-    for (size_t t = 0; t < world.source.size(); ++t) world.source[t] = {0, uint32_t(t)};
+    Mesh local_copy = src;
+    for (size_t t = 0; t < local_copy.source.size(); ++t) local_copy.source[t] = {0, uint32_t(t)};
     std::vector<Mesh> parts;
-    if (world.triangle_count() > piece_max) parts = split_mesh(world, uint32_t(std::min<uint64_t>(piece_max, 0xffffffffu)));
-    else parts.push_back(std::move(world));
+    if (local_copy.triangle_count() > piece_max)
+      parts = split_mesh(local_copy, uint32_t(std::min<uint64_t>(piece_max, 0xffffffffu)));
+    else
+      parts.push_back(std::move(local_copy));
     for (Mesh& part : parts) {
       UniquePiece piece;
       piece.instance = uint32_t(i);
@@ -209,7 +208,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
       }
       piece.mesh = std::move(part);
       Object o;
-      o.box = piece.mesh.local_bounds();
+      o.box = instance_bounds(scene, in, piece.mesh.local_bounds());
       o.centroid = o.box.center();
       o.weight = piece.mesh.triangle_count();
       o.piece = uint32_t(plan.pieces.size());

@@ -19,10 +19,11 @@ struct ClusterOptions {
   uint64_t segment_target = 0;       // triangles per mesh segment; 0 = same as chunk_target
 };
 
-// A piece of a non-instanced mesh, in world space (the mesh's single instance applied).
+// A piece of a non-instanced mesh, in the mesh's local space; its instance's transform places it
+// (unique geometry is not baked into world space: that would round it to float far from the origin).
 struct UniquePiece {
   uint32_t instance = 0;             // the scene instance it came from
-  Mesh mesh;                         // world space; Mesh::source still maps to the glTF triangle
+  Mesh mesh;                         // local space; Mesh::source still maps to the glTF triangle
   std::vector<uint32_t> prim;        // per triangle: its index in the original scene mesh
 };
 

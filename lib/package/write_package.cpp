@@ -71,7 +71,7 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
   job.raw = cb.finish();
 }
 
-// A batching point: its world-space pieces with their BVHs, its local instance table and an
+// A batching point: its pieces (local space) with their BVHs, its local instance table and an
 // instance BVH over pieces and instances (SPEC §4.2).
 template <int W, int B>
 void build_point(const Scene& scene, const Plan& plan, const BatchingPoint& bp, const BuildOptions& bo, Job& job) {
@@ -88,14 +88,13 @@ void build_point(const Scene& scene, const Plan& plan, const BatchingPoint& bp, 
     parts.append(bvh, k, piece.mesh.triangle_count());
     job.triangles += piece.mesh.triangle_count();
     const Instance& src = scene.instances[piece.instance];
-    fmt::InstanceRecord r = make_instance_record(Instance{});  // identity: pieces are in world space
+    fmt::InstanceRecord r = make_instance_record(src);  // pieces keep their mesh's local space
     r.mesh = uint32_t(slots.size());
-    r.source_node = src.node;
-    r.source_gpu_instance = src.gpu_instance;
     slots.push_back(fmt::kPieceBit | entry);
     records.push_back(r);
     global_ids.push_back(piece.instance);
-    boxes.push_back(box_of(piece.mesh.local_bounds()));
+    const Box3f local = box_of(piece.mesh.local_bounds());
+    boxes.push_back(transform_bounds(src.transform, &local, 1));
   }
   std::map<uint32_t, uint32_t> mesh_slot;
   for (uint32_t i : bp.instances) {

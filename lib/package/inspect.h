@@ -1,0 +1,128 @@
+#pragma once
+// rtpack-inspect: a package's sizes, batching points, mesh segments and per-chunk BVH statistics
+// (Benthin 2008 §4 cost model), computed on the reader side from the stored bytes only, and with
+// verify = true every invariant of formats/SPEC.md checked, each failure named by chunk and object.
+// Reader side: includes formats/, lib/package reader headers and lib/core only.
+#include <cstdint>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "formats/bvh_layout.h"
+#include "package/package.h"
+
+namespace rtp {
+
+struct InspectOptions {
+  bool chunks = false;     // per-chunk rows (kind, sizes, BVH statistics)
+  bool verify = false;     // check every invariant (checksums and decompression are always checked)
+  size_t max_listed = 20;  // problems kept verbatim; the rest are only counted
+};
+
+struct InspectResult {
+  nlohmann::json report;              // everything rtpack-inspect prints (--json prints it as is)
+  uint64_t problems = 0;              // chunks that failed to read or parse, failed invariants
+  std::vector<std::string> listed;    // the first max_listed problem messages
+};
+
+// Reads every chunk once (CRC-checked, decompressed) and analyses it. Never throws for a bad chunk:
+// each becomes a problem naming it. Throws rtp::Error only for what the reader itself throws.
+InspectResult inspect_package(const PackageReader& reader, const InspectOptions& options = {});
+
+// The report as aligned text tables (what rtpack-inspect prints without --json).
+std::string inspect_text(const nlohmann::json& report);
+
+// ---- reader-side BVH statistics (inspect_stats.cpp) ---------------------------------------------
+
+// A box in double. Empty: lo = +inf, hi = -inf.
+struct Box3d {
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+  double lo[3] = {kInf, kInf, kInf};
+  double hi[3] = {-kInf, -kInf, -kInf};
+  bool empty() const { return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]); }
+  void grow(const double p[3]);
+  void grow(const Box3d& b);
+};
+
+// Benthin 2008 §4, relative to the surface area of the root (the union of the root node's lanes):
+//   c_box = Σ_{inner nodes M} SA(M) / SA(root)            (the root counts 1)
+//   c_tri = Σ_{leaves L} SA(L)·⌈N(L)/B⌉ / SA(root)        N = distinct triangles (instances) of L;
+//                                                          B = 1 for instance BVHs
+// When SA(root) = 0 every ratio is 1. A root that is a leaf: c_box = 0, c_tri = ⌈N/B⌉, depth 0.
+struct BvhShape {
+  double c_box = 0, c_tri = 0;
+  double branching = 0;     // filled lanes per inner node (0 without inner nodes)
+  double leaf_fill = 0;     // primitives / (blocks·B) (0 without blocks)
+  uint32_t max_depth = 0;   // inner nodes on the longest root-to-leaf path
+  uint64_t nodes = 0;       // inner nodes reached
+  uint64_t leaves = 0;      // leaf lanes (or a leaf root)
+  uint64_t blocks = 0;      // leaf blocks (instance BVH: instance-index entries) referenced
+  uint64_t primitives = 0;  // distinct triangles (instances) over the leaves
+};
+
+// Problems found by a check, with the first few messages kept verbatim.
+class Problems {
+ public:
+  explicit Problems(size_t keep = 20) : keep_(keep) {}
+  void add(const std::string& message);
+  uint64_t count() const { return count_; }
+  const std::vector<std::string>& listed() const { return listed_; }
+
+ private:
+  size_t keep_;
+  uint64_t count_ = 0;
+  std::vector<std::string> listed_;
+};
+
+// A conservative bound an instance-BVH leaf must contain: box, minus tol per axis (float rounding).
+struct ItemBound {
+  Box3d box;
+  double tol[3] = {0, 0, 0};
+};
+
+// Optional invariant checks and outputs of a BVH walk. Without `problems` nothing is checked (the
+// walk still never reads out of range, and visits each node at most once).
+struct BvhCheck {
+  Problems* problems = nullptr;
+  std::string label;                      // message prefix: "<chunk label>: piece 3 (entry 0)"
+  std::vector<uint32_t>* prims = nullptr; // out: prim of every non-padding lane (instance BVH: ids)
+  const ItemBound* items = nullptr;       // instance BVH: the bound each local instance needs
+  uint64_t item_count = 0;
+  Box3d root_box;                         // out: root lanes' union (a leaf root: its contents)
+};
+
+// A mesh or piece BVH: `root` is a ChildRef relative to `nodes` and `blocks`.
+template <int W, int B>
+BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const fmt::LeafBlock<B>* blocks,
+                        uint64_t block_count, uint32_t root, BvhCheck* check = nullptr);
+
+// A batching point's instance BVH: leaves index `ids` (local instance indices).
+template <int W>
+BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const uint32_t* ids,
+                            uint64_t id_count, uint32_t root, BvhCheck* check = nullptr);
+
+// min / mean / max of a statistic over BVHs (or chunks).
+struct Spread {
+  double min = std::numeric_limits<double>::infinity(), max = -std::numeric_limits<double>::infinity(), sum = 0;
+  uint64_t n = 0;
+  void add(double v);
+  nlohmann::json json() const;  // {"min", "mean", "max"} (nulls when empty)
+};
+
+// The statistics of a group of BVHs (one chunk kind, or one chunk).
+struct BvhGroup {
+  uint64_t bvhs = 0, root_leaves = 0, triangles = 0, nodes = 0, blocks = 0;
+  Spread c_box, c_tri, sah, branching, leaf_fill, max_depth;
+  void add(const BvhShape& s);
+  nlohmann::json json() const;
+};
+
+// Power-of-two histogram: bucket 0 holds 0, bucket k ≥ 1 holds [2^(k-1), 2^k).
+struct Histogram {
+  std::vector<uint64_t> buckets;
+  void add(uint64_t v);
+  nlohmann::json json() const;  // [{"min", "max" (exclusive), "count"}] over the non-empty range
+};
+
+}  // namespace rtp
