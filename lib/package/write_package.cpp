@@ -2,6 +2,7 @@
 // zstd; in order: append to the package. Resident sections last.
 #include "package/write_package.h"
 
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
@@ -74,7 +75,8 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
 // A batching point: its pieces (local space) with their BVHs, its local instance table and an
 // instance BVH over pieces and instances (SPEC §4.2).
 template <int W, int B>
-void build_point(const Scene& scene, const Plan& plan, const BatchingPoint& bp, const BuildOptions& bo, Job& job) {
+void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>& mesh_box, const BatchingPoint& bp,
+                 const BuildOptions& bo, Job& job) {
   ChunkParts<W, B> parts;
   std::vector<fmt::InstanceRecord> records;
   std::vector<uint32_t> global_ids, slots;
@@ -105,8 +107,7 @@ void build_point(const Scene& scene, const Plan& plan, const BatchingPoint& bp, 
     r.mesh = it->second;
     records.push_back(r);
     global_ids.push_back(i);
-    const Box3f local = box_of(scene.meshes[in.mesh].local_bounds());
-    boxes.push_back(transform_bounds(in.transform, &local, 1));
+    boxes.push_back(transform_bounds(in.transform, &mesh_box[in.mesh], 1));
   }
   const BoxBvh<W> top = build_box_bvh<W>(boxes, bo, "batching point instance BVH");
   fmt::MeshEntry te{};
@@ -228,6 +229,8 @@ template <int W, int B>
 ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& path, const ConvertOptions& o) {
   PackageWriter writer(path, o.zstd_level);
   ConvertReport rep;
+  std::vector<Box3f> mesh_box(scene.meshes.size());  // once per mesh, not per instance
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { mesh_box[m] = box_of(scene.meshes[m].local_bounds()); });
   const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6;
   uint64_t next = 0, written = 0;
   struct Packed { Job job; std::vector<uint8_t> stored; fmt::Compression comp; uint32_t crc; };
@@ -262,7 +265,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                  build_segment<W, B>(scene, plan.segments[k], o.bvh, p.job);
                                                } else {
                                                  p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
-                                                 build_point<W, B>(scene, plan, plan.points[k - n_seg], o.bvh, p.job);
+                                                 build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, p.job);
                                                }
                                                p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
                                                                                   o.zstd_level, p.comp);
