@@ -1,0 +1,121 @@
+// The two levels in core (Molenaar 2019 §4.1): one BVH per mesh in local space, built in parallel
+// over meshes, and a W-wide instance BVH over the world bounds of the instances.
+#include <oneapi/tbb/parallel_for.h>
+
+#include <cmath>
+
+#include "bvh/build_internal.h"
+#include "core/error.h"
+
+namespace rtp {
+namespace {
+
+// Boxes whose union contains the mesh: the root's lane boxes (tighter under rotation than the root
+// box), or the vertex bounds of a mesh whose root is a leaf.
+template <int W, int B>
+std::vector<Box3f> local_boxes(const MeshBvh<W, B>& bvh) {
+  std::vector<Box3f> out;
+  const uint32_t root = bvh.root;
+  if (fmt::ChildRef::is_empty(root)) return out;
+  if (!fmt::ChildRef::is_leaf(root)) {
+    const fmt::WideNode<W>& n = bvh.nodes[fmt::ChildRef::node_index(root)];
+    for (int i = 0; i < W && !fmt::ChildRef::is_empty(n.child[i]); ++i) {
+      Box3f b;
+      for (int a = 0; a < 3; ++a) {
+        b.lo[a] = n.lo[a][i];
+        b.hi[a] = n.hi[a][i];
+      }
+      out.push_back(b);
+    }
+    return out;
+  }
+  Box3f b;
+  const uint32_t first = fmt::ChildRef::first_block(root), count = fmt::ChildRef::block_count(root);
+  for (uint32_t k = first; k < first + count; ++k)
+    for (int l = 0; l < B; ++l) {
+      const fmt::LeafBlock<B>& blk = bvh.blocks[k];
+      const float v[3][3] = {{blk.v0[0][l], blk.v0[1][l], blk.v0[2][l]},
+                             {blk.v1[0][l], blk.v1[1][l], blk.v1[2][l]},
+                             {blk.v2[0][l], blk.v2[1][l], blk.v2[2][l]}};
+      for (const auto& p : v) bvh::grow_point(b, p);
+    }
+  out.push_back(b);
+  return out;
+}
+
+std::string instance_label(size_t i, const Instance& inst) {
+  std::string s = "instance " + std::to_string(i);
+  if (inst.node != kNoIndex) s += " (/nodes/" + std::to_string(inst.node);
+  if (inst.node != kNoIndex && inst.gpu_instance != kNoIndex) s += ", GPU instance " + std::to_string(inst.gpu_instance);
+  if (inst.node != kNoIndex) s += ")";
+  return s;
+}
+
+}  // namespace
+
+template <int W, int B>
+InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOptions& options) {
+  bvh::check_options(options);
+  InCoreScene out;
+  const size_t nm = scene.meshes.size();
+  out.meshes_.resize(nm);
+  tbb::parallel_for(size_t(0), nm, [&](size_t i) {
+    const Mesh& m = scene.meshes[i];
+    out.meshes_[i] = build_mesh_bvh<W, B>(m, options, "mesh " + std::to_string(i) + " ('" + m.name + "')");
+  });
+  out.views_.reserve(nm);
+  for (const auto& m : out.meshes_) out.views_.push_back(m.view());
+
+  std::vector<std::vector<Box3f>> local(nm);
+  for (size_t i = 0; i < nm; ++i) local[i] = local_boxes(out.meshes_[i]);
+
+  std::vector<Box3f> boxes;
+  std::vector<uint32_t> ids;
+  out.records_.reserve(scene.instances.size());
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    if (inst.mesh >= nm)
+      throw Error(ExitCode::kInputInvalid, instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " does not exist");
+    out.records_.push_back(make_instance_record(inst));
+    const fmt::InstanceRecord& rec = out.records_.back();
+    if (local[inst.mesh].empty()) {
+      out.warnings_.push_back(instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH");
+      continue;
+    }
+    bool invertible = false;
+    for (float v : rec.world_to_local) invertible |= v != 0;
+    for (float v : rec.world_to_local) invertible &= std::isfinite(v);
+    if (!invertible) {
+      out.warnings_.push_back(instance_label(i, inst) + ": singular transform, left out of the instance BVH");
+      continue;
+    }
+    const Box3f box = transform_bounds(inst.transform, local[inst.mesh].data(), local[inst.mesh].size());
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(box.lo[a]) || !std::isfinite(box.hi[a]))
+        throw Error(ExitCode::kInputInvalid, instance_label(i, inst) + ": world bounds exceed the float range");
+    boxes.push_back(box);
+    ids.push_back(uint32_t(i));
+  }
+  out.top_ = build_box_bvh<W>(boxes, options, "instance BVH");
+  for (uint32_t& item : out.top_.items) item = ids[item];
+  return out;
+}
+
+template <int W, int B>
+SceneView<W, B> InCoreScene<W, B>::view() const {
+  SceneView<W, B> v;
+  v.top_nodes = top_.nodes.data();
+  v.top_root = top_.root;
+  v.top_instances = top_.items.data();
+  v.instances = records_.data();
+  v.meshes = views_.data();
+  return v;
+}
+
+template class InCoreScene<4, 4>;
+template class InCoreScene<8, 8>;
+template class InCoreScene<16, 16>;
+template class InCoreScene<8, 4>;
+template class InCoreScene<16, 8>;
+
+}  // namespace rtp

@@ -1,0 +1,120 @@
+// The instance level (Molenaar 2019 §4.1 two-level BVH): instance records (SPEC §2.4), world bounds of
+// instances, and the W-wide BVH over boxes that the instance level uses (same builders as meshes,
+// leaf cost per instance instead of per block).
+#include <cmath>
+
+#include "bvh/build_internal.h"
+#include "core/error.h"
+
+namespace rtp {
+
+bool invert_affine(const Affine3x4& m, double inv[12]) {
+  double a[3][3], t[3];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) a[r][c] = m(r, c);
+    t[r] = m(r, 3);
+  }
+  // Adjugate / determinant in double.
+  double adj[3][3];
+  adj[0][0] = a[1][1] * a[2][2] - a[1][2] * a[2][1];
+  adj[0][1] = a[0][2] * a[2][1] - a[0][1] * a[2][2];
+  adj[0][2] = a[0][1] * a[1][2] - a[0][2] * a[1][1];
+  adj[1][0] = a[1][2] * a[2][0] - a[1][0] * a[2][2];
+  adj[1][1] = a[0][0] * a[2][2] - a[0][2] * a[2][0];
+  adj[1][2] = a[0][2] * a[1][0] - a[0][0] * a[1][2];
+  adj[2][0] = a[1][0] * a[2][1] - a[1][1] * a[2][0];
+  adj[2][1] = a[0][1] * a[2][0] - a[0][0] * a[2][1];
+  adj[2][2] = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+  const double det = a[0][0] * adj[0][0] + a[0][1] * adj[1][0] + a[0][2] * adj[2][0];
+  if (!(std::abs(det) > 0) || !std::isfinite(det)) return false;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) inv[r * 4 + c] = adj[r][c] / det;
+    inv[r * 4 + 3] = -(inv[r * 4 + 0] * t[0] + inv[r * 4 + 1] * t[1] + inv[r * 4 + 2] * t[2]);
+  }
+  for (int i = 0; i < 12; ++i)
+    if (!std::isfinite(inv[i])) return false;
+  return true;
+}
+
+fmt::InstanceRecord make_instance_record(const Instance& instance) {
+  fmt::InstanceRecord rec{};
+  for (int i = 0; i < 12; ++i) rec.local_to_world[i] = instance.transform.m[size_t(i)];
+  double inv[12];
+  if (invert_affine(instance.transform, inv)) {
+    for (int i = 0; i < 12; ++i) rec.world_to_local[i] = float(inv[i]);
+  }
+  rec.mesh = instance.mesh;
+  rec.flags = instance.transform.det3() < 0 ? 1u : 0u;
+  rec.source_node = instance.node;
+  rec.source_gpu_instance = instance.gpu_instance;
+  return rec;
+}
+
+Box3f transform_bounds(const Affine3x4& m, const Box3f* local, size_t count) {
+  const double inf = std::numeric_limits<double>::infinity();
+  double lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
+  for (size_t b = 0; b < count; ++b) {
+    if (bvh::is_empty(local[b])) continue;
+    for (int corner = 0; corner < 8; ++corner) {
+      const Vec3d p{local[b].lo[0], local[b].lo[1], local[b].lo[2]};
+      Vec3d q = p;
+      for (int a = 0; a < 3; ++a)
+        if (corner & (1 << a)) q[a] = local[b].hi[a];
+      const Vec3d w = m.apply(q);
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], w[a]);
+        hi[a] = std::max(hi[a], w[a]);
+      }
+    }
+  }
+  Box3f out;
+  if (!(lo[0] <= hi[0])) return out;  // nothing to bound
+  const float finf = std::numeric_limits<float>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    // Round outward, then one more float step for the error of the double transform.
+    float l = float(lo[a]), h = float(hi[a]);
+    if (double(l) > lo[a]) l = std::nextafter(l, -finf);
+    if (double(h) < hi[a]) h = std::nextafter(h, finf);
+    out.lo[a] = bvh::no_negative_zero(std::nextafter(l, -finf));
+    out.hi[a] = bvh::no_negative_zero(std::nextafter(h, finf));
+  }
+  return out;
+}
+
+template <int W>
+BoxBvh<W> build_box_bvh(const std::vector<Box3f>& boxes, const BuildOptions& options, std::string_view label_in) {
+  using namespace bvh;
+  check_options(options);
+  const std::string label(label_in);
+  BuildParams p;
+  p.bins = options.bins;
+  p.max_depth = options.max_depth;
+  p.block = 1;  // every instance in a leaf costs a traversal of its own BVH
+  p.max_leaf = fmt::ChildRef::kMaxBlocksPerLeaf;
+  p.leaf_size = options.top_leaf_size;
+  p.task_threshold = options.task_threshold;
+  p.parallel_threshold = options.parallel_threshold;
+
+  std::vector<PrimRef> prims(boxes.size());
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    const Box3f& b = boxes[i];
+    for (int a = 0; a < 3; ++a) {
+      if (!std::isfinite(b.lo[a]) || !std::isfinite(b.hi[a]) || !(b.lo[a] <= b.hi[a]))
+        throw Error(ExitCode::kInputInvalid, label + ": box " + std::to_string(i) + " is empty or not finite");
+      prims[i].lo[a] = no_negative_zero(b.lo[a]);
+      prims[i].hi[a] = no_negative_zero(b.hi[a]);
+    }
+    prims[i].id = uint32_t(i);
+    prims[i].unused = 0;
+  }
+  const WideTree<W> tree = build_wide<W>(prims, p, options.method, label);
+  BoxBvh<W> out;
+  emit_boxes<W>(tree, prims.data(), label, out);
+  return out;
+}
+
+template BoxBvh<4> build_box_bvh<4>(const std::vector<Box3f>&, const BuildOptions&, std::string_view);
+template BoxBvh<8> build_box_bvh<8>(const std::vector<Box3f>&, const BuildOptions&, std::string_view);
+template BoxBvh<16> build_box_bvh<16>(const std::vector<Box3f>&, const BuildOptions&, std::string_view);
+
+}  // namespace rtp
