@@ -76,7 +76,7 @@ static_assert(sizeof(MeshEntry) == 32 && offsetof(MeshEntry, triangles) == 24);
 
 // Resident mesh table entry (kMeshTable), 32 bytes:
 //   0  uint32 segment        mesh segment holding its BVH, or 0xFFFFFFFF for a unique mesh (stored
-//                            as world-space pieces in batching points)
+//                            as pieces in batching points, in its local space)
 //   4  uint32 flags          bit 0: instanced (used by >= 2 instances)
 //   8  uint64 triangles
 //   16 uint32 source_prim_first  first entry of this mesh in kSourcePrims

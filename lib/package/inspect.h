@@ -3,6 +3,7 @@
 // (Benthin 2008 §4 cost model), computed on the reader side from the stored bytes only, and with
 // verify = true every invariant of formats/SPEC.md checked, each failure named by chunk and object.
 // Reader side: includes formats/, lib/package reader headers and lib/core only.
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -10,6 +11,8 @@
 #include <vector>
 
 #include "formats/bvh_layout.h"
+#include "formats/chunk.h"
+#include "formats/top_level.h"
 #include "package/package.h"
 
 namespace rtp {
@@ -21,7 +24,7 @@ struct InspectOptions {
 };
 
 struct InspectResult {
-  nlohmann::json report;              // everything rtpack-inspect prints (--json prints it as is)
+  nlohmann::json report;              // everything rtpack-inspect prints (as tables, or --json as is)
   uint64_t problems = 0;              // chunks that failed to read or parse, failed invariants
   std::vector<std::string> listed;    // the first max_listed problem messages
 };
@@ -29,9 +32,6 @@ struct InspectResult {
 // Reads every chunk once (CRC-checked, decompressed) and analyses it. Never throws for a bad chunk:
 // each becomes a problem naming it. Throws rtp::Error only for what the reader itself throws.
 InspectResult inspect_package(const PackageReader& reader, const InspectOptions& options = {});
-
-// The report as aligned text tables (what rtpack-inspect prints without --json).
-std::string inspect_text(const nlohmann::json& report);
 
 // ---- reader-side BVH statistics (inspect_stats.cpp) ---------------------------------------------
 
@@ -125,4 +125,69 @@ struct Histogram {
   nlohmann::json json() const;  // [{"min", "max" (exclusive), "count"}] over the non-empty range
 };
 
+// ---- internal: shared by inspect.cpp (reading, statistics) and inspect_verify.cpp (invariants) ----
+namespace inspect_detail {
+
+using Pair = std::array<uint32_t, 2>;
+
+// The resident sections as read (a flag is false when its chunk is missing or unreadable).
+struct Resident {
+  bool meta_ok = false, top_ok = false, descs_ok = false, instances_ok = false, meshes_ok = false, source_ok = false;
+  nlohmann::json meta;
+  std::vector<fmt::TopNode> top;
+  std::vector<fmt::BatchingPointDesc> descs;
+  std::vector<uint32_t> segment_refs;
+  std::vector<fmt::InstanceRecord> instances;
+  std::vector<fmt::MeshInfo> meshes;
+  std::vector<Pair> source_prims, source_tris;
+  std::string top_label, descs_label, instances_label, meshes_label, source_label, meta_label;
+};
+
+// One mesh segment: its entries and, per entry, the prims of its leaves (non-padding lanes).
+struct SegmentData {
+  uint64_t id = 0;
+  std::string label;
+  std::vector<fmt::MeshEntry> entries;
+  std::vector<std::vector<uint32_t>> prims;
+};
+
+// One batching point as read; `bounds` per local instance (pieces: root box; instances: the
+// transformed root box of its mesh in the segment, with the float-rounding tolerance).
+struct PointData {
+  uint64_t id = 0;
+  std::string label;
+  uint64_t te_count = 0, inode_count = 0, id_count = 0;
+  fmt::MeshEntry te{};
+  std::vector<fmt::InstanceRecord> records;
+  std::vector<uint32_t> global_ids, slots;
+  std::vector<fmt::MeshEntry> entries;
+  std::vector<std::vector<uint32_t>> piece_prims;
+  std::vector<uint32_t> instance_refs;  // local instances referenced by the instance BVH's leaves
+  std::vector<ItemBound> bounds;
+};
+
+// Cross-chunk invariants (SPEC §4): resident tables against each other, each chunk against them,
+// and coverage (every instance, every triangle exactly once) once every chunk has been seen.
+class Verifier {
+ public:
+  Verifier(const PackageReader& reader, const Resident& resident, Problems& problems);
+  void segment(const SegmentData& s);
+  void point(const PointData& p);
+  void finish();
+
+ private:
+  void check_toc();
+  void check_tables();
+  void check_top();
+  const PackageReader& r_;
+  const Resident& res_;
+  Problems& out_;
+  std::vector<uint32_t> instance_seen_;              // per scene instance: as a non-piece instance
+  std::vector<std::vector<uint8_t>> unique_cover_;   // per scene instance of a unique mesh: per triangle
+  std::vector<uint8_t> mesh_in_segment_;             // per mesh: entries in segments
+  std::vector<uint8_t> piece_seen_;                  // per piece id
+  uint64_t pieces_ = 0, segments_ = 0, points_ = 0;
+};
+
+}  // namespace inspect_detail
 }  // namespace rtp
