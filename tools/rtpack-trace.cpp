@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +16,7 @@
 
 #include "core/error.h"
 #include "package/package.h"
+#include "package/chunk_io.h"
 #include "package/package_tracer.h"
 
 namespace {
@@ -30,6 +32,54 @@ std::vector<rtp::fmt::Ray> read_rays(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f.read(reinterpret_cast<char*>(rays.data()), std::streamsize(size)))
     throw rtp::Error(rtp::ExitCode::kInputIo, "cannot read ray file '" + path + "'");
+  return rays;
+}
+
+// Primary rays through a W x H image from the package's first glTF camera, or from an automatic
+// camera framing the header bounds (looking at the centre from +z, 45 degrees).
+std::vector<rtp::fmt::Ray> camera_rays(const rtp::PackageReader& r, int w, int h) {
+  namespace fmt = rtp::fmt;
+  const int64_t mi = r.find(fmt::ChunkKind::kMetadata, 0);
+  nlohmann::json cam;
+  if (mi >= 0) {
+    const rtp::AlignedBytes b = r.read(size_t(mi));
+    rtp::ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMetadata), rtp::chunk_label(r.toc()[size_t(mi)], size_t(mi)));
+    const auto text = v.copy<uint8_t>(fmt::SectionType::kJson);
+    const auto meta = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
+    if (meta.is_object() && meta.contains("cameras") && !meta["cameras"].empty()) cam = meta["cameras"][0];
+  }
+  double m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  double yfov = 0.785398, aspect = double(w) / h;
+  if (cam.is_object() && cam.value("type", "") == "perspective") {
+    for (int i = 0; i < 12; ++i) m[i] = cam["world"][size_t(i)].get<double>();
+    yfov = cam.value("yfov", yfov);
+  } else {
+    const auto& hd = r.header();
+    double c[3], ext = 0;
+    for (int k = 0; k < 3; ++k) {
+      c[k] = 0.5 * (double(hd.bounds_lo[k]) + hd.bounds_hi[k]);
+      ext = std::max(ext, double(hd.bounds_hi[k]) - hd.bounds_lo[k]);
+    }
+    m[3] = c[0];
+    m[7] = c[1];
+    m[11] = c[2] + 1.5 * ext + 1e-3;
+  }
+  std::vector<fmt::Ray> rays;
+  rays.reserve(size_t(w) * size_t(h));
+  const double t = std::tan(yfov / 2);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double px = (2 * (x + 0.5) / w - 1) * t * aspect, py = (1 - 2 * (y + 0.5) / h) * t;
+      const double d[3] = {px, py, -1};  // camera looks down -z
+      fmt::Ray ray{};
+      for (int k = 0; k < 3; ++k) {
+        ray.org[k] = float(m[4 * k + 3]);
+        ray.dir[k] = float(m[4 * k] * d[0] + m[4 * k + 1] * d[1] + m[4 * k + 2] * d[2]);
+      }
+      ray.tnear = 0;
+      ray.tfar = std::numeric_limits<float>::infinity();
+      rays.push_back(ray);
+    }
   return rays;
 }
 
@@ -58,7 +108,10 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool any = false, json = false, direct = false;
   app.add_option("package", package, "the .rtp package")->required();
+  std::string make_rays;
   app.add_option("--rays", rays_path, "ray file: N x {ox oy oz tnear dx dy dz tfar} float32")->required();
+  app.add_option("--make-camera-rays", make_rays,
+                 "WxH: first write primary rays from the package's first camera (or an automatic one) to --rays");
   app.add_option("--hits", hits_path, "hit file to write: N x {t, instance, primitive, u, v} (or N bytes with --any)")->required();
   app.add_flag("--any", any, "any-hit (occlusion): write one byte per ray, 1 = occluded");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
@@ -78,6 +131,14 @@ int main(int argc, char** argv) {
     rtp::check_output_path(hits_path);
     const rtp::PackageReader reader(package, direct);
     const auto tracer = rtp::load_package_in_core(reader);
+    if (!make_rays.empty()) {
+      int w = 0, h = 0;
+      if (std::sscanf(make_rays.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
+        throw rtp::Error(rtp::ExitCode::kUsage, "--make-camera-rays " + make_rays + ": expected WxH, e.g. 640x480");
+      rtp::check_output_path(rays_path);
+      const auto cr = camera_rays(reader, w, h);
+      write_atomically(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
+    }
     const std::vector<rtp::fmt::Ray> rays = read_rays(rays_path);
     rtp::TraceOptions opt;
     const rtp::Isa best = rtp::detect_isa();
