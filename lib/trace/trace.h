@@ -25,6 +25,7 @@ struct TraceOptions {
 struct TraceStats {
   uint64_t rays = 0;
   uint64_t invalid_rays = 0;  // NaN/Inf, tnear > tfar, tnear = inf: returned as misses
+  uint64_t overflow_rays = 0;  // tree deeper than the fixed traversal stacks allow (malformed BVH): misses
 };
 
 // Closest hit for rays[0..n): hits[i].t = +inf on a miss. Thread-safe (no shared mutable state),

@@ -1,0 +1,35 @@
+#pragma once
+// The SIMD kernels behind the interface traversal uses (trace_ray.h), for a choice of vector type per
+// width: AVX2 runs 4 lanes in SSE, 8 in AVX, 16 as two AVX halves; AVX-512 runs 16 in one zmm.
+#include <type_traits>
+
+#include "trace/box_simd.h"
+#include "trace/simd_avx2.h"
+#include "trace/triangle_simd.h"
+
+namespace rtp::RTP_ISA_NS {
+
+template <class V4, class V8, class V16>
+struct SimdKernels {
+  template <int N>
+  using Vec = std::conditional_t<N == 4, V4, std::conditional_t<N == 8, V8, V16>>;
+
+  template <int W>
+  static uint32_t node(const fmt::WideNode<W>& n, const detail::BoxRay& r, float tfar, float* dist) {
+    return box_test_simd<Vec<W>, W>(n, r, tfar, dist);
+  }
+  template <int W>
+  static uint32_t ordered(uint32_t mask, const uint8_t* order) {
+    return ordered_mask_sse<W>(mask, order);
+  }
+  template <int B>
+  static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
+    return triangle_test_simd<Vec<B>, B, false>(b, r, tfar, out);
+  }
+  template <int B>
+  static bool block_any(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar) {
+    return triangle_test_simd<Vec<B>, B, true>(b, r, tfar, nullptr) != 0;
+  }
+};
+
+}  // namespace rtp::RTP_ISA_NS

@@ -1,0 +1,95 @@
+#pragma once
+// 4- and 8-lane float vectors (SSE/AVX2) with just what the kernels need. Compiled inside the ISA
+// namespace of the including translation unit (trace_avx2.cpp, trace_avx512.cpp).
+// min/max keep the x86 semantics the scalar reference copies: (a < b) ? a : b, second operand on NaN.
+#include <immintrin.h>
+
+#include <cstdint>
+
+#ifndef RTP_ISA_NS
+#error "define RTP_ISA_NS before including lib/trace kernel headers"
+#endif
+
+namespace rtp::RTP_ISA_NS {
+
+struct M4 {
+  __m128 v;
+  uint32_t bits() const { return static_cast<uint32_t>(_mm_movemask_ps(v)); }
+};
+inline M4 operator&(M4 a, M4 b) { return {_mm_and_ps(a.v, b.v)}; }
+inline M4 operator|(M4 a, M4 b) { return {_mm_or_ps(a.v, b.v)}; }
+
+struct F4 {
+  using Mask = M4;
+  static constexpr int kLanes = 4;
+  __m128 v;
+  static F4 load(const float* p) { return {_mm_loadu_ps(p)}; }
+  static F4 splat(float x) { return {_mm_set1_ps(x)}; }
+  void store(float* p) const { _mm_storeu_ps(p, v); }
+};
+inline F4 operator+(F4 a, F4 b) { return {_mm_add_ps(a.v, b.v)}; }
+inline F4 operator-(F4 a, F4 b) { return {_mm_sub_ps(a.v, b.v)}; }
+inline F4 operator*(F4 a, F4 b) { return {_mm_mul_ps(a.v, b.v)}; }
+inline F4 operator/(F4 a, F4 b) { return {_mm_div_ps(a.v, b.v)}; }
+inline M4 operator<(F4 a, F4 b) { return {_mm_cmp_ps(a.v, b.v, _CMP_LT_OQ)}; }
+inline M4 operator<=(F4 a, F4 b) { return {_mm_cmp_ps(a.v, b.v, _CMP_LE_OQ)}; }
+inline M4 operator>=(F4 a, F4 b) { return {_mm_cmp_ps(a.v, b.v, _CMP_GE_OQ)}; }
+inline M4 operator==(F4 a, F4 b) { return {_mm_cmp_ps(a.v, b.v, _CMP_EQ_OQ)}; }
+inline M4 operator!=(F4 a, F4 b) { return {_mm_cmp_ps(a.v, b.v, _CMP_NEQ_OQ)}; }
+inline F4 vmin(F4 a, F4 b) { return {_mm_min_ps(a.v, b.v)}; }
+inline F4 vmax(F4 a, F4 b) { return {_mm_max_ps(a.v, b.v)}; }
+inline F4 vabs(F4 a) { return {_mm_andnot_ps(_mm_set1_ps(-0.0f), a.v)}; }
+inline F4 vselect(M4 m, F4 a, F4 b) { return {_mm_blendv_ps(b.v, a.v, m.v)}; }  // m ? a : b
+
+struct M8 {
+  __m256 v;
+  uint32_t bits() const { return static_cast<uint32_t>(_mm256_movemask_ps(v)); }
+};
+inline M8 operator&(M8 a, M8 b) { return {_mm256_and_ps(a.v, b.v)}; }
+inline M8 operator|(M8 a, M8 b) { return {_mm256_or_ps(a.v, b.v)}; }
+
+struct F8 {
+  using Mask = M8;
+  static constexpr int kLanes = 8;
+  __m256 v;
+  static F8 load(const float* p) { return {_mm256_loadu_ps(p)}; }
+  static F8 splat(float x) { return {_mm256_set1_ps(x)}; }
+  void store(float* p) const { _mm256_storeu_ps(p, v); }
+};
+inline F8 operator+(F8 a, F8 b) { return {_mm256_add_ps(a.v, b.v)}; }
+inline F8 operator-(F8 a, F8 b) { return {_mm256_sub_ps(a.v, b.v)}; }
+inline F8 operator*(F8 a, F8 b) { return {_mm256_mul_ps(a.v, b.v)}; }
+inline F8 operator/(F8 a, F8 b) { return {_mm256_div_ps(a.v, b.v)}; }
+inline M8 operator<(F8 a, F8 b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_LT_OQ)}; }
+inline M8 operator<=(F8 a, F8 b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_LE_OQ)}; }
+inline M8 operator>=(F8 a, F8 b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_GE_OQ)}; }
+inline M8 operator==(F8 a, F8 b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_EQ_OQ)}; }
+inline M8 operator!=(F8 a, F8 b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_NEQ_OQ)}; }
+inline F8 vmin(F8 a, F8 b) { return {_mm256_min_ps(a.v, b.v)}; }
+inline F8 vmax(F8 a, F8 b) { return {_mm256_max_ps(a.v, b.v)}; }
+inline F8 vabs(F8 a) { return {_mm256_andnot_ps(_mm256_set1_ps(-0.0f), a.v)}; }
+inline F8 vselect(M8 m, F8 a, F8 b) { return {_mm256_blendv_ps(b.v, a.v, m.v)}; }  // m ? a : b
+
+// Octant order as a byte shuffle: bit i of the result = bit (order[i] & 15) of `mask`, 0 when
+// order[i] has bit 7 set (pshufb semantics, matched by ordered_mask_scalar).
+template <int W>
+inline uint32_t ordered_mask_sse(uint32_t mask, const uint8_t* order) {
+  const __m128i spread = _mm_shuffle_epi8(_mm_cvtsi32_si128(static_cast<int>(mask)),
+                                          _mm_setr_epi8(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1));
+  const __m128i bit = _mm_setr_epi8(1, 2, 4, 8, 16, 32, 64, -128, 1, 2, 4, 8, 16, 32, 64, -128);
+  const __m128i hit = _mm_cmpeq_epi8(_mm_and_si128(spread, bit), bit);
+  __m128i ord;
+  if constexpr (W == 4) {
+    int32_t o4;
+    __builtin_memcpy(&o4, order, 4);
+    ord = _mm_cvtsi32_si128(o4);
+  } else if constexpr (W == 8) {
+    ord = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(order));
+  } else {
+    ord = _mm_loadu_si128(reinterpret_cast<const __m128i*>(order));
+  }
+  const uint32_t om = static_cast<uint32_t>(_mm_movemask_epi8(_mm_shuffle_epi8(hit, ord)));
+  return W == 16 ? om : om & ((1u << W) - 1u);
+}
+
+}  // namespace rtp::RTP_ISA_NS

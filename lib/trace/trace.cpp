@@ -1,0 +1,112 @@
+// Run-time choice of ISA (baseline x86-64 code: only cpuid/xgetbv through __builtin_cpu_supports)
+// and the public entry points of trace.h / kernels.h.
+#include "trace/trace.h"
+
+#include "trace/isa_entry.h"
+#include "trace/kernels.h"
+
+namespace rtp {
+namespace {
+
+Isa detect_isa_uncached() {
+  __builtin_cpu_init();
+  // __builtin_cpu_supports checks both cpuid and that the OS saves the YMM/ZMM state (xgetbv).
+  const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+                    __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") &&
+                    __builtin_cpu_supports("popcnt");
+  const bool avx512 = avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                      __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+  return avx512 ? Isa::kAvx512 : (avx2 ? Isa::kAvx2 : Isa::kScalar);
+}
+
+// The requested ISA, or the best this CPU has when it lacks the requested one.
+Isa usable(Isa requested) {
+  const Isa best = detect_isa();
+  return static_cast<int>(requested) <= static_cast<int>(best) ? requested : best;
+}
+
+}  // namespace
+
+Isa detect_isa() {
+  static const Isa isa = detect_isa_uncached();
+  return isa;
+}
+
+const char* isa_name(Isa isa) {
+  switch (isa) {
+    case Isa::kScalar: return "scalar";
+    case Isa::kAvx2: return "avx2";
+    case Isa::kAvx512: return "avx512";
+  }
+  return "unknown";
+}
+
+const char* order_name(TraversalOrder order) {
+  switch (order) {
+    case TraversalOrder::kOctantStack: return "octant-stack";
+    case TraversalOrder::kActiveList: return "active-list";
+  }
+  return "unknown";
+}
+
+template <int W, int B>
+TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
+                         const TraceOptions& options) {
+  switch (usable(options.isa)) {
+    case Isa::kAvx512: return avx512::closest<W, B>(scene, rays, hits, n, options.order);
+    case Isa::kAvx2: return avx2::closest<W, B>(scene, rays, hits, n, options.order);
+    case Isa::kScalar: break;
+  }
+  return scalar::closest<W, B>(scene, rays, hits, n, options.order);
+}
+
+template <int W, int B>
+TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,
+                     const TraceOptions& options) {
+  switch (usable(options.isa)) {
+    case Isa::kAvx512: return avx512::any<W, B>(scene, rays, occluded, n, options.order);
+    case Isa::kAvx2: return avx2::any<W, B>(scene, rays, occluded, n, options.order);
+    case Isa::kScalar: break;
+  }
+  return scalar::any<W, B>(scene, rays, occluded, n, options.order);
+}
+
+template <int B>
+void intersect_block(Isa isa, const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {
+  switch (usable(isa)) {
+    case Isa::kAvx512: return avx512::block_test<B>(block, ray, out);
+    case Isa::kAvx2: return avx2::block_test<B>(block, ray, out);
+    case Isa::kScalar: break;
+  }
+  scalar::block_test<B>(block, ray, out);
+}
+
+template <int W>
+void intersect_node(Isa isa, const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out) {
+  switch (usable(isa)) {
+    case Isa::kAvx512: return avx512::node_test<W>(node, ray, out);
+    case Isa::kAvx2: return avx2::node_test<W>(node, ray, out);
+    case Isa::kScalar: break;
+  }
+  scalar::node_test<W>(node, ray, out);
+}
+
+#define RTP_INSTANTIATE_PUBLIC_WB(W, B)                                                                    \
+  template TraceStats trace_closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,     \
+                                          const TraceOptions&);                                            \
+  template TraceStats trace_any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t,          \
+                                      const TraceOptions&);
+RTP_INSTANTIATE_PUBLIC_WB(4, 4)
+RTP_INSTANTIATE_PUBLIC_WB(8, 8)
+RTP_INSTANTIATE_PUBLIC_WB(16, 16)
+RTP_INSTANTIATE_PUBLIC_WB(8, 4)
+RTP_INSTANTIATE_PUBLIC_WB(16, 8)
+
+#define RTP_INSTANTIATE_PUBLIC_N(N)                                                                          \
+  template void intersect_block<N>(Isa, const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*);         \
+  template void intersect_node<N>(Isa, const fmt::WideNode<N>&, const fmt::Ray&, NodeHits<N>*);
+RTP_INSTANTIATE_PUBLIC_N(4)
+RTP_INSTANTIATE_PUBLIC_N(8)
+RTP_INSTANTIATE_PUBLIC_N(16)
+
+}  // namespace rtp

@@ -1,0 +1,13 @@
+// AVX-512 path (built with -mavx512f/vl/bw/dq): 16 lanes in one zmm, 4 and 8 in xmm/ymm.
+// No FMA contraction: the scalar reference rounds every product, and so must we.
+#pragma GCC optimize("fp-contract=off")
+#define RTP_ISA_NS avx512
+#include "trace/kernels_simd.h"
+#include "trace/simd_avx512.h"
+#include "trace/trace_ray.h"
+
+namespace rtp::avx512 {
+using Avx512Kernels = SimdKernels<F4, F8, F16>;
+}  // namespace rtp::avx512
+
+RTP_DEFINE_ISA_ENTRY_POINTS(Avx512Kernels)

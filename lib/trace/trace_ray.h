@@ -1,0 +1,181 @@
+#pragma once
+// One ray through the two-level BVH (instance level, then mesh level) and the batch entry points,
+// generic over a kernel set K (kernels_scalar.h / kernels_simd.h). Each ISA translation unit
+// includes this once inside its own namespace and instantiates it with RTP_DEFINE_ISA_ENTRY_POINTS.
+#include <cmath>
+#include <cstddef>
+
+#include "trace/isa_entry.h"
+#include "trace/kernel_common.h"
+#include "trace/ray_prep.h"
+#include "trace/scene_view.h"
+#include "trace/traverse_active.h"
+#include "trace/traverse_octant.h"
+
+namespace rtp::RTP_ISA_NS {
+
+// The best hit so far; `t` doubles as the live tfar of the traversal. Equal t: the smaller
+// (instance, prim) wins, so the answer does not depend on ISA, order, W or B.
+struct Closest {
+  float t;
+  uint32_t instance;
+  uint32_t prim;
+  float u, v;
+};
+
+template <TraversalOrder O, class K, int W, class LeafFn, class PrefetchFn>
+inline Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
+                 LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
+  if constexpr (O == TraversalOrder::kOctantStack)
+    return walk_octant_stack<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
+  else
+    return walk_active_list<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
+}
+
+// Molenaar 2019 §4.1 two-level BVH: walk the instance BVH with the world ray; at an instance leaf,
+// move the ray into the instance's local space (world_to_local, direction not renormalized, so t is
+// shared by both levels) and walk that mesh's BVH with the same tfar.
+template <class K, TraversalOrder O, bool kAny, int W, int B>
+inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* best) {
+  detail::BoxRay world;
+  setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
+  auto instance_leaf = [&](uint32_t ref) -> Walk {
+    const uint32_t first = fmt::ChildRef::first_block(ref), count = fmt::ChildRef::block_count(ref);
+    for (uint32_t k = first; k < first + count; ++k) {
+      const uint32_t id = s.top_instances[k];
+      const fmt::InstanceRecord& inst = s.instances[id];
+      float org[3], dir[3];
+      if (!transform_ray(inst.world_to_local, ray.org, ray.dir, org, dir)) continue;
+      detail::BoxRay box;
+      setup_box_ray(org, dir, ray.tnear, &box);
+      detail::TriRay tri;
+      bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
+      const MeshBvhView<W, B>& mesh = s.meshes[inst.mesh];
+      if (k + 1 < first + count) {  // the next instance's record, while this one is walked
+        const char* next = reinterpret_cast<const char*>(s.instances + s.top_instances[k + 1]);
+        __builtin_prefetch(next), __builtin_prefetch(next + 64);
+      }
+      auto block_leaf = [&](uint32_t leaf_ref) -> Walk {
+        if (!tri_ready) setup_tri_ray(org, dir, ray.tnear, &tri), tri_ready = true;
+        const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
+        for (uint32_t b = b0; b < b0 + nb; ++b) {
+          const fmt::LeafBlock<B>& blk = mesh.blocks[b];
+          if constexpr (kAny) {
+            if (K::template block_any<B>(blk, tri, best->t)) return Walk::kStop;
+          } else {
+            BlockHits<B> h;
+            for (uint32_t m = K::template block<B>(blk, tri, best->t, &h); m; m &= m - 1) {
+              const int i = lowest_bit(m);
+              const float t = h.t[i];
+              const uint32_t prim = blk.prim[i];
+              if (t < best->t ||
+                  (t == best->t && (id < best->instance || (id == best->instance && prim < best->prim))))
+                *best = {t, id, prim, h.u[i], h.v[i]};
+            }
+          }
+        }
+        return Walk::kDone;
+      };
+      auto prefetch_block = [&](uint32_t leaf_ref) {
+        const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
+        for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
+      };
+      const Walk w = walk<O, K, W>(mesh.nodes, mesh.root, box, best->t, block_leaf, prefetch_block);
+      if (w != Walk::kDone) return w;
+    }
+    return Walk::kDone;
+  };
+  return walk<O, K, W>(s.top_nodes, s.top_root, world, best->t, instance_leaf, [](uint32_t) {});
+}
+
+template <class K, TraversalOrder O, bool kAny, int W, int B>
+inline TraceStats trace_batch(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, uint8_t* occluded,
+                              size_t n) {
+  TraceStats stats;
+  stats.rays = n;
+  for (size_t i = 0; i < n; ++i) {
+    const fmt::Ray ray = rays[i];
+    Closest best{ray.tfar, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
+    Walk w = Walk::kDone;
+    if (!ray_is_valid(ray))
+      ++stats.invalid_rays;
+    else if (direction_usable(ray.dir))
+      w = trace_one<K, O, kAny, W, B>(s, ray, &best);
+    if (w == Walk::kOverflow) {
+      ++stats.overflow_rays;
+      best.instance = fmt::Hit::kNone;
+    }
+    if constexpr (kAny) {
+      occluded[i] = w == Walk::kStop ? 1 : 0;
+    } else if (best.instance == fmt::Hit::kNone) {
+      hits[i] = {INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
+    } else {
+      hits[i] = {best.t, best.instance, best.prim, best.u, best.v};
+    }
+  }
+  return stats;
+}
+
+template <class K, int B>
+inline void block_test_impl(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {
+  out->mask = 0;
+  if (!ray_is_valid(ray) || !direction_usable(ray.dir)) return;
+  detail::TriRay r;
+  setup_tri_ray(ray.org, ray.dir, ray.tnear, &r);
+  out->mask = K::template block<B>(block, r, ray.tfar, out);
+}
+
+template <class K, int W>
+inline void node_test_impl(const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out) {
+  out->mask = 0;
+  if (!ray_is_valid(ray)) return;
+  detail::BoxRay r;
+  setup_box_ray(ray.org, ray.dir, ray.tnear, &r);
+  out->mask = K::template node<W>(node, r, ray.tfar, out->dist);
+}
+
+}  // namespace rtp::RTP_ISA_NS
+
+// Defines this ISA's entry points (isa_entry.h) with kernel set K and instantiates them for
+// (W, B) in {(4,4), (8,8), (16,16), (8,4), (16,8)}, blocks B in {4, 8, 16}, nodes W in {4, 8, 16}.
+#define RTP_DEFINE_ISA_ENTRY_POINTS(K)                                                                        \
+  namespace rtp::RTP_ISA_NS {                                                                                 \
+  template <int W, int B>                                                                                     \
+  TraceStats closest(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, size_t n,               \
+                     TraversalOrder order) {                                                                  \
+    return order == TraversalOrder::kOctantStack                                                              \
+               ? trace_batch<K, TraversalOrder::kOctantStack, false>(s, rays, hits, nullptr, n)               \
+               : trace_batch<K, TraversalOrder::kActiveList, false>(s, rays, hits, nullptr, n);               \
+  }                                                                                                           \
+  template <int W, int B>                                                                                     \
+  TraceStats any(const SceneView<W, B>& s, const fmt::Ray* rays, uint8_t* occluded, size_t n,                \
+                 TraversalOrder order) {                                                                      \
+    return order == TraversalOrder::kOctantStack                                                              \
+               ? trace_batch<K, TraversalOrder::kOctantStack, true>(s, rays, nullptr, occluded, n)            \
+               : trace_batch<K, TraversalOrder::kActiveList, true>(s, rays, nullptr, occluded, n);            \
+  }                                                                                                           \
+  template <int B>                                                                                            \
+  void block_test(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {                 \
+    block_test_impl<K, B>(block, ray, out);                                                                   \
+  }                                                                                                           \
+  template <int W>                                                                                            \
+  void node_test(const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out) {                      \
+    node_test_impl<K, W>(node, ray, out);                                                                     \
+  }                                                                                                           \
+  RTP_INSTANTIATE_WB(4, 4)                                                                                    \
+  RTP_INSTANTIATE_WB(8, 8)                                                                                    \
+  RTP_INSTANTIATE_WB(16, 16)                                                                                  \
+  RTP_INSTANTIATE_WB(8, 4)                                                                                    \
+  RTP_INSTANTIATE_WB(16, 8)                                                                                   \
+  RTP_INSTANTIATE_N(4)                                                                                        \
+  RTP_INSTANTIATE_N(8)                                                                                        \
+  RTP_INSTANTIATE_N(16)                                                                                       \
+  }
+
+#define RTP_INSTANTIATE_WB(W, B)                                                                        \
+  template TraceStats closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,        \
+                                    TraversalOrder);                                                    \
+  template TraceStats any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, TraversalOrder);
+#define RTP_INSTANTIATE_N(N)                                                                 \
+  template void block_test<N>(const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*); \
+  template void node_test<N>(const fmt::WideNode<N>&, const fmt::Ray&, NodeHits<N>*);

@@ -1,0 +1,65 @@
+#pragma once
+// Depth-first traversal of one W-wide BVH level in the node's precomputed octant order, with a
+// fixed-size stack of (child, entry distance). Shared by the instance level and the mesh level.
+#include "formats/bvh_layout.h"
+#include "trace/kernel_common.h"
+
+namespace rtp::RTP_ISA_NS {
+
+// Molenaar 2019 §4.1 (after Fuetterling 2017): hit children in node.order[octant] order, the nearest
+// taken next, the others pushed far to near with their entry distance; a popped entry whose distance
+// is beyond the (padded) current tfar is dropped. `tfar` is live: the leaf callback may shorten it.
+// leaf(ref) returns kDone to go on, kStop/kOverflow to end the walk with that status.
+template <class K, int W, class LeafFn, class PrefetchFn>
+inline Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
+                              const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
+  struct Entry {
+    uint32_t ref;
+    float dist;
+  };
+  // Each inner level adds at most W - 1 entries (the nearest child is not pushed).
+  constexpr int kCapacity = (W - 1) * detail::kMaxDepth + 1;
+  Entry stack[kCapacity];
+  int sp = 0;
+  alignas(64) float dist[W];
+  uint32_t cur = root;
+  for (;;) {
+    if (fmt::ChildRef::is_leaf(cur)) {
+      const Walk w = leaf(cur);
+      if (w != Walk::kDone) return w;
+    } else if (!fmt::ChildRef::is_empty(cur)) {
+      const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
+      const uint32_t mask = K::template node<W>(node, ray, tfar, dist);
+      prefetch_children(nodes, node, mask, prefetch_leaf);
+      const uint8_t* order = node.order[ray.octant];
+      if (mask && !(mask & (mask - 1))) {  // one child hit: no order needed
+        cur = node.child[lowest_bit(mask)];
+        continue;
+      }
+      uint32_t om = mask ? K::template ordered<W>(mask, order) : 0u;
+      if (om) {
+        const int nearest = lowest_bit(om);
+        om &= om - 1;
+        if (sp + bit_count(om) > kCapacity) return Walk::kOverflow;
+        while (om) {
+          const int i = highest_bit(om);
+          om &= ~(1u << i);
+          const int lane = order[i] & 15;
+          stack[sp++] = {node.child[lane], dist[lane]};
+        }
+        cur = node.child[order[nearest] & 15];
+        continue;
+      }
+    }
+    for (;;) {
+      if (sp == 0) return Walk::kDone;
+      const Entry e = stack[--sp];
+      if (e.dist <= pad_far(tfar)) {
+        cur = e.ref;
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace rtp::RTP_ISA_NS

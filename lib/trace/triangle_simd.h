@@ -1,0 +1,88 @@
+#pragma once
+// SIMD watertight ray/triangle test over one SoA leaf block, generic over a vector type from
+// simd_avx2.h / simd_avx512.h. Same operations, same order as triangle_test_scalar: bit-identical results.
+#include <cfloat>
+
+#include "formats/bvh_layout.h"
+#include "trace/kernel_common.h"
+#include "trace/kernels.h"
+
+namespace rtp::RTP_ISA_NS {
+
+// Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3: shear by the dominant axis,
+// edge functions with the double fallback (scalar, only for the lanes where one is exactly 0),
+// two-sided sign test; t from the plane equation with the two shorter edges (see triangle_scalar.h),
+// in [tnear, tfar] and finite;
+// u = V / det, v = W / det.
+template <class V, int B, bool kAny>
+inline uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar,
+                                   BlockHits<B>* out) {
+  const int kx = r.kx, ky = r.ky, kz = r.kz;
+  const V ox = V::splat(r.org_k[0]), oy = V::splat(r.org_k[1]), oz = V::splat(r.org_k[2]);
+  const V sx = V::splat(r.sx), sy = V::splat(r.sy);
+  const V zero = V::splat(0.0f);
+  uint32_t mask = 0;
+  for (int off = 0; off < B; off += V::kLanes) {
+    const V p0x = V::load(&blk.v0[kx][off]), p0y = V::load(&blk.v0[ky][off]), p0z = V::load(&blk.v0[kz][off]);
+    const V p1x = V::load(&blk.v1[kx][off]), p1y = V::load(&blk.v1[ky][off]), p1z = V::load(&blk.v1[kz][off]);
+    const V p2x = V::load(&blk.v2[kx][off]), p2y = V::load(&blk.v2[ky][off]), p2z = V::load(&blk.v2[kz][off]);
+    const V az = p0z - oz, bz = p1z - oz, cz = p2z - oz;
+    const V ax0 = p0x - ox, ay0 = p0y - oy;
+    const V ax = ax0 - sx * az;
+    const V ay = ay0 - sy * az;
+    const V bx = (p1x - ox) - sx * bz;
+    const V by = (p1y - oy) - sy * bz;
+    const V cx = (p2x - ox) - sx * cz;
+    const V cy = (p2y - oy) - sy * cz;
+    V u = cx * by - cy * bx;
+    V v = ax * cy - ay * cx;
+    V w = bx * ay - by * ax;
+    const uint32_t exact_zero = ((u == zero) | (v == zero) | (w == zero)).bits();
+    if (exact_zero) [[unlikely]] {
+      alignas(64) float s[6][V::kLanes], e[3][V::kLanes];
+      ax.store(s[0]), ay.store(s[1]), bx.store(s[2]), by.store(s[3]), cx.store(s[4]), cy.store(s[5]);
+      u.store(e[0]), v.store(e[1]), w.store(e[2]);
+      for (uint32_t m = exact_zero; m; m &= m - 1) {
+        const int i = lowest_bit(m);
+        edge_functions_double(s[0][i], s[1][i], s[2][i], s[3][i], s[4][i], s[5][i], &e[0][i], &e[1][i], &e[2][i]);
+      }
+      u = V::load(e[0]), v = V::load(e[1]), w = V::load(e[2]);
+    }
+    const auto inside = ((u >= zero) & (v >= zero) & (w >= zero)) | ((u <= zero) & (v <= zero) & (w <= zero));
+    if (!inside.bits()) continue;
+    const V det = (u + v) + w;
+    const V d01x = p1x - p0x, d01y = p1y - p0y, d01z = p1z - p0z;
+    const V d12x = p2x - p1x, d12y = p2y - p1y, d12z = p2z - p1z;
+    const V d20x = p0x - p2x, d20y = p0y - p2y, d20z = p0z - p2z;
+    const V l01 = (d01x * d01x + d01y * d01y) + d01z * d01z;
+    const V l12 = (d12x * d12x + d12y * d12y) + d12z * d12z;
+    const V l20 = (d20x * d20x + d20y * d20y) + d20z * d20z;
+    const auto skip12 = (l12 >= l01) & (l12 >= l20);  // (d01, d20) at p0
+    const auto skip20 = l20 >= l01;                     // else (d12, d01) at p1, else (d20, d12) at p2
+    const V eax = vselect(skip12, d01x, vselect(skip20, d12x, d20x));
+    const V eay = vselect(skip12, d01y, vselect(skip20, d12y, d20y));
+    const V eaz = vselect(skip12, d01z, vselect(skip20, d12z, d20z));
+    const V ebx = vselect(skip12, d20x, vselect(skip20, d01x, d12x));
+    const V eby = vselect(skip12, d20y, vselect(skip20, d01y, d12y));
+    const V ebz = vselect(skip12, d20z, vselect(skip20, d01z, d12z));
+    const V rx = vselect(skip12, ax0, vselect(skip20, p1x - ox, p2x - ox));
+    const V ry = vselect(skip12, ay0, vselect(skip20, p1y - oy, p2y - oy));
+    const V rz = vselect(skip12, az, vselect(skip20, bz, cz));
+    const V nx = eay * ebz - eaz * eby, ny = eaz * ebx - eax * ebz, nz = eax * eby - eay * ebx;
+    const V den = (nx * V::splat(r.dir_k[0]) + ny * V::splat(r.dir_k[1])) + nz * V::splat(r.dir_k[2]);
+    const V num = (nx * rx + ny * ry) + nz * rz;
+    const V t = num / den;
+    const uint32_t hit = (inside & (det != zero) & (t >= V::splat(r.tnear)) & (t <= V::splat(tfar)) &
+                          (vabs(t) <= V::splat(FLT_MAX)))
+                             .bits();
+    if (!hit) continue;
+    if constexpr (kAny) return hit << off;
+    mask |= hit << off;
+    t.store(out->t + off);
+    (v / det).store(out->u + off);
+    (w / det).store(out->v + off);
+  }
+  return mask;
+}
+
+}  // namespace rtp::RTP_ISA_NS
