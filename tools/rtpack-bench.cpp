@@ -2,9 +2,12 @@
 //
 // Loads a glTF scene, builds Embree directly from it and rtpack's InCoreScene<W,W> for each width,
 // generates the rays once (lib/oracle/rays.h, seeded), times both tracers on exactly those rays
-// (best of --reps after one warm-up run; 1..T threads through tbb::task_arena), and verifies, untimed,
+// (best of --reps interleaved runs after a warm-up; 1..T threads through tbb::task_arena), and verifies, untimed,
 // that every timed rtpack answer agrees with Embree ray by ray (lib/oracle/compare.h). Shadow rays
 // are timed as any-hit queries (trace_any vs rtcOccluded1M), every other kind as closest hit.
+// Embree is driven as its documentation advises: primary rays (4x4 tiles) in rtcIntersect16 packets
+// with the COHERENT flag, other rays in rtcIntersect1M/rtcOccluded1M streams with the INCOHERENT flag;
+// the reference answers are always the robust stream ones.
 //
 // Exit codes: 0 ok, 1 usage, 2 input unreadable, 3 invalid input (or no triangles), 5 rtpack disagreed
 // with Embree on some ray (the numbers are printed, but they are not worth anything).
@@ -110,26 +113,37 @@ struct KindData {
   std::vector<fmt::Ray> rays;
   std::vector<fmt::Hit> ref_hits;  // Embree closest hits (reference for both query types)
   std::vector<uint8_t> skip;       // rays Embree cannot take: no reference
+  RayCoherence coherence = RayCoherence::kIncoherent;  // how Embree is timed on these rays
   RayGenInfo info;
-  double embree_seconds[65] = {};  // by thread count (best of reps)
+  uint64_t embree_timed_failures = 0;  // timed Embree answers (packets for primary) vs the stream reference
 };
 
 struct Agreement {
-  uint64_t agree = 0, edge_ties = 0, failures = 0, skipped = 0;
+  uint64_t agree = 0, edge_ties = 0, precision_ties = 0, failures = 0, skipped = 0;
   std::string first_failure;
 };
 
-Agreement agreement_closest(const KindData& k, const std::vector<fmt::Hit>& got) {
-  const CompareReport r = compare_closest(k.rays.data(), k.ref_hits.data(), got.data(), k.rays.size(), {}, k.skip.data());
-  Agreement a{r.agree(), r.edge_ties, r.failures, r.skipped, {}};
+Agreement agreement_closest(const Scene& scene, const KindData& k, const std::vector<fmt::Hit>& got) {
+  CompareOptions opt;
+  opt.scene = &scene;
+  const CompareReport r = compare_closest(k.rays.data(), k.ref_hits.data(), got.data(), k.rays.size(), opt, k.skip.data());
+  Agreement a{r.agree(), r.edge_ties, r.precision_ties, r.failures, r.skipped, {}};
   if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
   return a;
 }
 
-Agreement agreement_any(const KindData& k, const std::vector<uint8_t>& occ) {
-  const AnyHitReport r = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), k.rays.size(), {}, k.skip.data());
-  Agreement a{r.consistent, r.edge_ties, r.failures, r.skipped, {}};
+// Any hit: against Embree's closest hit (ties classified through rtpack's own closest hit, computed
+// untimed), and against rtpack's own closest hit (no ties allowed beyond edges).
+Agreement agreement_any(const Scene& scene, const KindData& k, const std::vector<uint8_t>& occ,
+                        const std::vector<fmt::Hit>& own_closest) {
+  CompareOptions opt;
+  opt.scene = &scene;
+  const size_t n = k.rays.size();
+  const AnyHitReport r = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, opt, k.skip.data(), own_closest.data());
+  const AnyHitReport own = check_any_hit(k.rays.data(), own_closest.data(), occ.data(), n, opt);
+  Agreement a{r.consistent, r.edge_ties, r.precision_ties, r.failures + own.failures, r.skipped, {}};
   if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
+  else if (!own.first_failures.empty()) a.first_failure = "(any hit vs rtpack's own closest hit)\n" + own.first_failures[0].describe();
   return a;
 }
 
@@ -159,8 +173,8 @@ uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
 }
 
 template <int W>
-void run_width(const Config& cfg, const Scene& scene, std::vector<KindData>& kinds, std::vector<Record>& records,
-               std::vector<BuildRecord>& builds) {
+void run_width(const Config& cfg, const Scene& scene, const EmbreeOracle& embree, std::vector<KindData>& kinds,
+               std::vector<Record>& records, std::vector<BuildRecord>& builds) {
   const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
   progress("building rtpack W=" + std::to_string(W) + " ...");
   std::optional<InCoreScene<W, W>> bvh;
@@ -197,24 +211,42 @@ void run_width(const Config& cfg, const Scene& scene, std::vector<KindData>& kin
   const SceneView<W, W> view = bvh->view();
   for (KindData& k : kinds) {
     const size_t n = k.rays.size();
-    std::vector<fmt::Hit> hits(n);
-    std::vector<uint8_t> occ(n);
+    std::vector<fmt::Hit> hits(n), embree_hits(n);
+    std::vector<uint8_t> occ(n), embree_occ(n);
     for (TraversalOrder order : cfg.orders) {
       const TraceOptions topt{cfg.isa, order};
       for (int t : cfg.threads) {
         progress(std::string("timing ") + ray_kind_name(k.kind) + " W=" + std::to_string(W) + " " + order_name(order) +
                  " T=" + std::to_string(t) + " ...");
         tbb::task_arena arena(t);
-        double secs = 0;
-        arena.execute([&] {
-          secs = best_of(cfg.reps, [&] {
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
-              if (k.any)
-                trace_any<W, W>(view, k.rays.data() + r.begin(), occ.data() + r.begin(), r.size(), topt);
-              else
-                trace_closest<W, W>(view, k.rays.data() + r.begin(), hits.data() + r.begin(), r.size(), topt);
-            });
+        auto rtpack_run = [&] {
+          tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+            if (k.any)
+              trace_any<W, W>(view, k.rays.data() + r.begin(), occ.data() + r.begin(), r.size(), topt);
+            else
+              trace_closest<W, W>(view, k.rays.data() + r.begin(), hits.data() + r.begin(), r.size(), topt);
           });
+        };
+        auto embree_run = [&] {
+          if (k.any)
+            embree.occluded(k.rays.data(), embree_occ.data(), n, k.coherence);
+          else
+            embree.closest(k.rays.data(), embree_hits.data(), n, k.coherence);
+        };
+        // Interleaved repetitions (rtpack, Embree, rtpack, ...) after one warm-up of each, best of each:
+        // a change of machine load during the run hits both sides alike.
+        double secs = std::numeric_limits<double>::infinity(), embree_secs = secs;
+        arena.execute([&] {
+          rtpack_run();
+          embree_run();
+          for (int r = 0; r < cfg.reps; ++r) {
+            auto t0 = Clock::now();
+            rtpack_run();
+            secs = std::min(secs, seconds_since(t0));
+            t0 = Clock::now();
+            embree_run();
+            embree_secs = std::min(embree_secs, seconds_since(t0));
+          }
         });
         Record rec;
         rec.kind = k.kind;
@@ -222,9 +254,19 @@ void run_width(const Config& cfg, const Scene& scene, std::vector<KindData>& kin
         rec.order = order;
         rec.threads = t;
         rec.rtpack_mrays = double(n) / secs * 1e-6;
-        rec.embree_mrays = double(n) / k.embree_seconds[t] * 1e-6;
+        rec.embree_mrays = double(n) / embree_secs * 1e-6;
         rec.bytes_per_triangle = bpt;
-        rec.agreement = k.any ? agreement_any(k, occ) : agreement_closest(k, hits);  // the timed answers
+        // Verify the timed answers (untimed).
+        if (k.any) {
+          arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+              trace_closest<W, W>(view, k.rays.data() + r.begin(), hits.data() + r.begin(), r.size(), topt);
+            });
+          });
+          rec.agreement = agreement_any(scene, k, occ, hits);
+        } else {
+          rec.agreement = agreement_closest(scene, k, hits);
+        }
         records.push_back(rec);
       }
     }
@@ -235,7 +277,7 @@ int run(const Config& cfg) {
   const auto t_load = Clock::now();
   progress("loading " + cfg.scene_path + " ...");
   const Scene scene = import_gltf(cfg.scene_path);
-  if (scene.instanced_triangles() == 0) throw Error(ExitCode::kInputInvalid, cfg.scene_path + ": the scene has no triangles");
+  if (scene.instanced_triangles() == 0) throw Error(ExitCode::kInputInvalid, "the scene has no triangles");
   const double load_s = seconds_since(t_load);
   const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
 
@@ -246,7 +288,7 @@ int run(const Config& cfg) {
     arena.execute([&] { embree.emplace(scene, OracleQuality::kHigh); });
   }
 
-  // Rays, once; Embree's answers and timings on them.
+  // Rays, once, and Embree's (robust stream) answers to them: the reference.
   std::vector<KindData> kinds;
   for (RayKind kind : cfg.kinds) {
     progress(std::string("generating ") + ray_kind_name(kind) + " rays ...");
@@ -261,20 +303,18 @@ int run(const Config& cfg) {
     k.ref_hits.resize(n);
     embree->closest(k.rays.data(), k.ref_hits.data(), n);
     k.skip = unsupported_mask(k.rays.data(), n);
-    const RayCoherence coh = kind == RayKind::kPrimary ? RayCoherence::kCoherent : RayCoherence::kIncoherent;
+    k.coherence = kind == RayKind::kPrimary ? RayCoherence::kCoherent : RayCoherence::kIncoherent;
+    // Embree's answers on the path it is timed on are checked too (its packet path is not robust).
     std::vector<fmt::Hit> hits(n);
     std::vector<uint8_t> occ(n);
-    for (int t : cfg.threads) {
-      progress(std::string("timing Embree ") + ray_kind_name(kind) + " T=" + std::to_string(t) + " ...");
-      tbb::task_arena arena(t);
-      arena.execute([&] {
-        k.embree_seconds[t] = best_of(cfg.reps, [&] {
-          if (k.any)
-            embree->occluded(k.rays.data(), occ.data(), n, coh);
-          else
-            embree->closest(k.rays.data(), hits.data(), n, coh);
-        });
-      });
+    CompareOptions copt;
+    copt.scene = &scene;
+    if (k.any) {
+      embree->occluded(k.rays.data(), occ.data(), n, k.coherence);
+      k.embree_timed_failures = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, copt, k.skip.data()).failures;
+    } else {
+      embree->closest(k.rays.data(), hits.data(), n, k.coherence);
+      k.embree_timed_failures = compare_closest(k.rays.data(), k.ref_hits.data(), hits.data(), n, copt, k.skip.data()).failures;
     }
     kinds.push_back(std::move(k));
   }
@@ -282,13 +322,14 @@ int run(const Config& cfg) {
   std::vector<Record> records;
   std::vector<BuildRecord> builds;
   for (int w : cfg.widths) {
-    if (w == 4) run_width<4>(cfg, scene, kinds, records, builds);
-    if (w == 8) run_width<8>(cfg, scene, kinds, records, builds);
-    if (w == 16) run_width<16>(cfg, scene, kinds, records, builds);
+    if (w == 4) run_width<4>(cfg, scene, *embree, kinds, records, builds);
+    if (w == 8) run_width<8>(cfg, scene, *embree, kinds, records, builds);
+    if (w == 16) run_width<16>(cfg, scene, *embree, kinds, records, builds);
   }
 
   // The SAH table of lib/bvh (whole scene flattened when small enough, else the scene's meshes).
   std::string sah_table;
+  std::vector<BvhStatsRow> sah_rows;
   if (cfg.build_stats) {
     progress("SAH statistics ...");
     std::vector<BvhStatsRow> rows;
@@ -303,6 +344,7 @@ int run(const Config& cfg) {
       }
     }
     sah_table = bvh_stats_table(rows);
+    sah_rows = rows;
   }
   progress_done();
 
@@ -332,8 +374,10 @@ int run(const Config& cfg) {
                      {"bytes_per_triangle", r.bytes_per_triangle},
                      {"agree", r.agreement.agree},
                      {"edge_ties", r.agreement.edge_ties},
+                     {"precision_ties", r.agreement.precision_ties},
                      {"failures", r.agreement.failures},
                      {"skipped", r.agreement.skipped},
+                     {"embree_timed_failures", k->embree_timed_failures},
                      {"cpu", cpu}});
     }
     for (const BuildRecord& b : builds)
@@ -348,6 +392,25 @@ int run(const Config& cfg) {
                      {"bvh_bytes", b.bvh_bytes},
                      {"bytes_per_triangle", b.bytes_per_triangle},
                      {"cpu", cpu}});
+    for (const BvhStatsRow& r : sah_rows)
+      out.push_back({{"type", "sah"},
+                     {"scene", cfg.scene_path},
+                     {"model", r.model},
+                     {"width", r.width},
+                     {"block", r.block},
+                     {"method", method_name(r.method)},
+                     {"c_box", r.stats.c_box},
+                     {"c_tri", r.stats.c_tri},
+                     {"sah", r.stats.sah},
+                     {"branching", r.stats.branching},
+                     {"leaf_fill", r.stats.leaf_fill},
+                     {"max_depth", r.stats.max_depth},
+                     {"triangles", r.stats.primitives},
+                     {"nodes", r.stats.nodes},
+                     {"leaves", r.stats.leaves},
+                     {"bytes_per_triangle",
+                      double(r.stats.node_bytes + r.stats.block_bytes) / double(std::max<uint64_t>(1, r.stats.primitives))},
+                     {"build_s", r.build_seconds}});
     std::cout << out.dump(1) << "\n";
   }
 
@@ -356,19 +419,25 @@ int run(const Config& cfg) {
   std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
                cfg.scene_path.c_str(), scene.instanced_triangles(), scene.unique_triangles(), scene.meshes.size(),
                scene.instances.size(), load_s);
-  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d after a warm-up\n", cpu.c_str(),
+  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n", cpu.c_str(),
                isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
-  for (const KindData& k : kinds)
+  for (const KindData& k : kinds) {
     if (k.info.fallback)
       std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
+    if (k.embree_timed_failures)
+      std::fprintf(o, "note: %s: Embree's timed %s path disagrees with its own robust stream answers on %" PRIu64 " rays\n",
+                   ray_kind_name(k.kind), k.kind == RayKind::kPrimary ? "packet" : "stream", k.embree_timed_failures);
+  }
   std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
-               "Embree Mrays/s", "ratio", "B/tri", "agree / edge ties / FAILURES / skipped");
+               "Embree Mrays/s", "ratio", "B/tri", "agree / edge ties / precision ties / FAILURES / skipped");
   for (const Record& r : records) {
     const bool any = r.kind == RayKind::kShadow;
-    std::fprintf(o, "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64 "\n",
+    std::fprintf(o,
+                 "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
+                 " / %" PRIu64 "\n",
                  ray_kind_name(r.kind), any ? "any" : "closest", r.width, order_name(r.order), r.threads, r.rtpack_mrays,
                  r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
-                 r.agreement.edge_ties, r.agreement.failures, r.agreement.skipped);
+                 r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped);
   }
   if (!builds.empty()) {
     std::fprintf(o, "\nbuild (same triangles; Embree ROBUST + HIGH quality):\n%3s %3s %12s %14s %15s %10s\n", "W", "T",
@@ -453,15 +522,15 @@ int main(int argc, char** argv) {
     return run(cfg);
   } catch (const Error& e) {
     progress_done();
-    std::cerr << "rtpack-bench: " << e.what() << "\n";
+    std::cerr << "error: " << cfg.scene_path << ": " << e.what() << "\n";
     return int(e.code());
   } catch (const std::bad_alloc&) {
     progress_done();
-    std::cerr << "rtpack-bench: out of memory\n";
+    std::cerr << "error: " << cfg.scene_path << ": out of memory\n";
     return int(ExitCode::kInternal);
   } catch (const std::exception& e) {
     progress_done();
-    std::cerr << "rtpack-bench: " << e.what() << "\n";
+    std::cerr << "error: " << cfg.scene_path << ": internal error: " << e.what() << "\n";
     return int(ExitCode::kInternal);
   }
 }

@@ -1,0 +1,312 @@
+#include "oracle/embree_oracle.h"
+
+#include <embree3/rtcore.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+
+namespace rtp {
+namespace {
+
+constexpr size_t kGrain = 256;  // rays per TBB task
+constexpr size_t kBatch = 64;   // rays per rtcIntersect1M call (stack buffer)
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+struct ErrorSink {
+  std::mutex mutex;
+  std::string first;
+};
+
+void on_embree_error(void* user, RTCError code, const char* message) {
+  auto* sink = static_cast<ErrorSink*>(user);
+  std::lock_guard<std::mutex> lock(sink->mutex);
+  if (sink->first.empty())
+    sink->first = "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "(no message)");
+}
+
+RTCBuildQuality to_rtc(OracleQuality q) {
+  switch (q) {
+    case OracleQuality::kLow: return RTC_BUILD_QUALITY_LOW;
+    case OracleQuality::kMedium: return RTC_BUILD_QUALITY_MEDIUM;
+    case OracleQuality::kHigh: return RTC_BUILD_QUALITY_HIGH;
+  }
+  return RTC_BUILD_QUALITY_HIGH;
+}
+
+bool finite_and_small(float x) { return std::abs(x) <= kEmbreeMaxMagnitude; }  // false for NaN/Inf
+
+void set_miss(fmt::Hit& h) {
+  h.t = kInf;
+  h.instance = fmt::Hit::kNone;
+  h.prim = fmt::Hit::kNone;
+  h.u = 0;
+  h.v = 0;
+}
+
+void load_ray(const fmt::Ray& r, RTCRay& e) {
+  e.org_x = r.org[0];
+  e.org_y = r.org[1];
+  e.org_z = r.org[2];
+  e.tnear = r.tnear;
+  e.dir_x = r.dir[0];
+  e.dir_y = r.dir[1];
+  e.dir_z = r.dir[2];
+  e.time = 0;
+  e.tfar = r.tfar;
+  e.mask = 0xFFFFFFFFu;
+  e.id = 0;
+  e.flags = 0;
+}
+
+}  // namespace
+
+RayStatus ray_status(const fmt::Ray& r) {
+  bool finite = true;
+  for (int i = 0; i < 3; ++i) finite = finite && std::isfinite(r.org[i]) && std::isfinite(r.dir[i]);
+  // NaN compares false: !(tnear <= tfar) covers NaN tnear/tfar and tnear > tfar.
+  if (!finite || !(r.tnear <= r.tfar) || r.tnear == kInf) return RayStatus::kInvalid;
+  for (int i = 0; i < 3; ++i)
+    if (!finite_and_small(r.org[i]) || !finite_and_small(r.dir[i])) return RayStatus::kUnsupported;
+  if (r.tnear < 0) return RayStatus::kUnsupported;
+  return RayStatus::kValid;
+}
+
+const char* quality_name(OracleQuality q) {
+  switch (q) {
+    case OracleQuality::kLow: return "low";
+    case OracleQuality::kMedium: return "medium";
+    case OracleQuality::kHigh: return "high";
+  }
+  return "?";
+}
+
+struct EmbreeOracle::Impl {
+  ErrorSink errors;
+  RTCDevice device = nullptr;
+  RTCScene top = nullptr;
+  std::vector<RTCScene> mesh_scenes;  // per rtp mesh (nullptr for meshes without triangles)
+
+  void check(const char* what) {
+    const RTCError code = rtcGetDeviceError(device);
+    std::lock_guard<std::mutex> lock(errors.mutex);
+    if (code != RTC_ERROR_NONE || !errors.first.empty())
+      throw Error(ExitCode::kInternal, std::string("Embree oracle: ") + what + ": " +
+                                           (errors.first.empty() ? "error " + std::to_string(int(code)) : errors.first));
+  }
+
+  ~Impl() {
+    if (top) rtcReleaseScene(top);
+    for (RTCScene s : mesh_scenes)
+      if (s) rtcReleaseScene(s);
+    if (device) rtcReleaseDevice(device);
+  }
+};
+
+EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality) : quality_(quality) {
+  const auto start = std::chrono::steady_clock::now();
+  impl_ = new Impl;
+  try {
+    Impl& im = *impl_;
+    im.device = rtcNewDevice("verbose=0");
+    if (!im.device) throw Error(ExitCode::kInternal, "Embree oracle: rtcNewDevice failed");
+    rtcSetDeviceErrorFunction(im.device, on_embree_error, &im.errors);
+    const RTCBuildQuality q = to_rtc(quality);
+    const auto flags = RTCSceneFlags(RTC_SCENE_FLAG_ROBUST);
+
+    im.mesh_scenes.assign(scene.meshes.size(), nullptr);
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+      const Mesh& mesh = scene.meshes[m];
+      const size_t tris = mesh.indices.size() / 3;
+      if (tris == 0 || mesh.positions.empty()) continue;
+      RTCGeometry g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      // Embree allocates these with the padding its SSE loads need (a shared std::vector would not).
+      auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                            3 * sizeof(float), mesh.positions.size()));
+      auto* ix = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                3 * sizeof(uint32_t), tris));
+      im.check("allocating geometry buffers");
+      for (size_t i = 0; i < mesh.positions.size(); ++i) {
+        v[3 * i + 0] = mesh.positions[i].x;
+        v[3 * i + 1] = mesh.positions[i].y;
+        v[3 * i + 2] = mesh.positions[i].z;
+      }
+      std::memcpy(ix, mesh.indices.data(), tris * 3 * sizeof(uint32_t));
+      rtcSetGeometryBuildQuality(g, q);
+      rtcCommitGeometry(g);
+      RTCScene s = rtcNewScene(im.device);
+      rtcSetSceneFlags(s, flags);
+      rtcSetSceneBuildQuality(s, q);
+      rtcAttachGeometryByID(s, g, 0);
+      rtcReleaseGeometry(g);
+      rtcCommitScene(s);
+      im.mesh_scenes[m] = s;
+      im.check("building a mesh scene");
+    }
+
+    im.top = rtcNewScene(im.device);
+    rtcSetSceneFlags(im.top, flags);
+    rtcSetSceneBuildQuality(im.top, q);
+    for (size_t i = 0; i < scene.instances.size(); ++i) {
+      const Instance& inst = scene.instances[i];
+      if (inst.mesh >= im.mesh_scenes.size() || !im.mesh_scenes[inst.mesh]) continue;
+      RTCGeometry g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
+      rtcSetGeometryInstancedScene(g, im.mesh_scenes[inst.mesh]);
+      rtcSetGeometryTimeStepCount(g, 1);
+      rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, inst.transform.m.data());
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(im.top, g, static_cast<unsigned>(i));
+      rtcReleaseGeometry(g);
+      ++geometries_;
+    }
+    im.check("attaching instances");
+    rtcCommitScene(im.top);
+    im.check("building the instance scene");
+  } catch (...) {
+    delete impl_;
+    impl_ = nullptr;
+    throw;
+  }
+  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+EmbreeOracle::~EmbreeOracle() { delete impl_; }
+
+OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, RayCoherence coherence) const {
+  std::atomic<uint64_t> invalid{0}, unsupported{0};
+  RTCScene top = impl_->top;
+  const RTCIntersectContextFlags cflags =
+      coherence == RayCoherence::kCoherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
+    alignas(64) RTCRayHit buf[kBatch];
+    uint32_t slot[kBatch];
+    uint64_t bad = 0, unsup = 0;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = cflags;
+    for (size_t b = range.begin(); b < range.end(); b += kBatch) {
+      const size_t e = std::min(range.end(), b + kBatch);
+      unsigned m = 0;
+      for (size_t i = b; i < e; ++i) {
+        const RayStatus st = ray_status(rays[i]);
+        if (st != RayStatus::kValid) {
+          (st == RayStatus::kInvalid ? bad : unsup) += 1;
+          set_miss(hits[i]);
+          continue;
+        }
+        RTCRayHit& rh = buf[m];
+        load_ray(rays[i], rh.ray);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        slot[m++] = uint32_t(i - b);
+      }
+      if (m > 0 && coherence == RayCoherence::kCoherent) {
+        // Packets of 16 neighbouring rays (Embree's packet traversal; ray order decides coherence).
+        for (unsigned p = 0; p < m; p += 16) {
+          alignas(64) RTCRayHit16 pk;
+          alignas(64) int valid[16];
+          for (unsigned j = 0; j < 16; ++j) {
+            valid[j] = p + j < m ? -1 : 0;
+            // Inactive lanes carry a copy of the packet's first ray: Embree's AVX-512 rtcOccluded16 was
+            // seen to spin forever on zeroed inactive lanes (zero direction).
+            const RTCRayHit& src = buf[valid[j] ? p + j : p];
+            pk.ray.org_x[j] = src.ray.org_x;
+            pk.ray.org_y[j] = src.ray.org_y;
+            pk.ray.org_z[j] = src.ray.org_z;
+            pk.ray.tnear[j] = src.ray.tnear;
+            pk.ray.dir_x[j] = src.ray.dir_x;
+            pk.ray.dir_y[j] = src.ray.dir_y;
+            pk.ray.dir_z[j] = src.ray.dir_z;
+            pk.ray.time[j] = 0;
+            pk.ray.tfar[j] = src.ray.tfar;
+            pk.ray.mask[j] = 0xFFFFFFFFu;
+            pk.ray.id[j] = 0;
+            pk.ray.flags[j] = 0;
+            pk.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+            pk.hit.primID[j] = RTC_INVALID_GEOMETRY_ID;
+            pk.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+          }
+          rtcIntersect16(valid, top, &ctx, &pk);
+          for (unsigned j = 0; j < 16 && p + j < m; ++j) {
+            RTCRayHit& dst = buf[p + j];
+            dst.ray.tfar = pk.ray.tfar[j];
+            dst.hit.geomID = pk.hit.geomID[j];
+            dst.hit.primID = pk.hit.primID[j];
+            dst.hit.instID[0] = pk.hit.instID[0][j];
+            dst.hit.u = pk.hit.u[j];
+            dst.hit.v = pk.hit.v[j];
+          }
+        }
+      } else if (m > 0) {
+        rtcIntersect1M(top, &ctx, buf, m, sizeof(RTCRayHit));
+      }
+      for (unsigned k = 0; k < m; ++k) {
+        const RTCRayHit& rh = buf[k];
+        fmt::Hit& h = hits[b + slot[k]];
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+          set_miss(h);
+        } else {
+          h.t = rh.ray.tfar;
+          h.instance = rh.hit.instID[0];
+          h.prim = rh.hit.primID;
+          h.u = rh.hit.u;
+          h.v = rh.hit.v;
+        }
+      }
+    }
+    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
+    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
+  });
+  return {n, invalid.load(), unsupported.load()};
+}
+
+OracleStats EmbreeOracle::occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n, RayCoherence coherence) const {
+  std::atomic<uint64_t> invalid{0}, unsupported{0};
+  RTCScene top = impl_->top;
+  const RTCIntersectContextFlags cflags =
+      coherence == RayCoherence::kCoherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
+    alignas(64) RTCRay buf[kBatch];
+    uint32_t slot[kBatch];
+    uint64_t bad = 0, unsup = 0;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = cflags;
+    for (size_t b = range.begin(); b < range.end(); b += kBatch) {
+      const size_t e = std::min(range.end(), b + kBatch);
+      unsigned m = 0;
+      for (size_t i = b; i < e; ++i) {
+        const RayStatus st = ray_status(rays[i]);
+        if (st != RayStatus::kValid) {
+          (st == RayStatus::kInvalid ? bad : unsup) += 1;
+          occluded[i] = 0;
+          continue;
+        }
+        load_ray(rays[i], buf[m]);
+        slot[m++] = uint32_t(i - b);
+      }
+      // A stream in both cases (the COHERENT flag lets Embree form packets). Not rtcOccluded16: the
+      // Debian 3.13.5 AVX-512 build spins forever in it after an rtcIntersect1M call made inside a
+      // one-thread tbb::task_arena (reproduced on samples/generated/gallery.glb).
+      if (m > 0) rtcOccluded1M(top, &ctx, buf, m, sizeof(RTCRay));
+      // Embree sets tfar = -inf on an occluded ray.
+      for (unsigned k = 0; k < m; ++k) occluded[b + slot[k]] = buf[k].tfar == -kInf ? 1 : 0;
+    }
+    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
+    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
+  });
+  return {n, invalid.load(), unsupported.load()};
+}
+
+}  // namespace rtp
