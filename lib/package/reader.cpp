@@ -135,7 +135,7 @@ AlignedBytes PackageReader::read_stored(size_t index) const {
     }
     done += size_t(n);
   }
-  std::memcpy(out.data(), buf, e.stored_size);
+  if (e.stored_size) std::memcpy(out.data(), buf, e.stored_size);
   std::free(buf);
   return out;
 }
