@@ -44,7 +44,7 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays, const Pa
 
 TEST_P(TraceBvh, EveryWidthIsaOrderAgreesWithBruteForce) {
   const std::string path = RTP_SOURCE_DIR "/samples/" + GetParam();
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is missing";
+  ASSERT_TRUE(std::filesystem::exists(path)) << "committed sample missing: " << path;
   const Scene scene = import_gltf(path);
   const InCoreScene<8, 8> base_scene = InCoreScene<8, 8>::build(scene);
   const SceneView<8, 8> base_view = base_scene.view();
