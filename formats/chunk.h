@@ -51,8 +51,15 @@ enum class SectionType : uint32_t {
   kJson = 14,         // uint8[] UTF-8 JSON text
   kInstanceNodes = 15,  // WideNode<W>[] the batching point's instance BVH
   kInstanceBvh = 16,    // one MeshEntry: the instance BVH's root and sizes (items in kInstanceIds)
+  // Attribute chunks (kinds 18/19, only with rtpack-convert --attributes), SPEC §4.4:
+  kAttrEntries = 17,    // AttributeEntry[] one per MeshEntry of the geometry chunk, same order
+  kAttrTriangles = 18,  // uint32[3][]      per triangle: vertex indices (relative to the entry)
+  kAttrNormals = 19,    // float[3][]       per vertex: unit normal in the mesh's local space
+  kAttrUvs = 20,        // float[2][]       per vertex: TEXCOORD_0
+  kAttrTriIds = 21,     // uint32[]         per piece triangle: its index in the scene mesh, ascending
 };
 
+inline constexpr uint32_t kMeshInstanced = 1, kMeshNormals = 2, kMeshUvs = 4;  // MeshInfo::flags
 inline constexpr uint32_t kPieceBit = 0x80000000u;  // kMeshSlots: a piece stored in this chunk
 
 // One BVH inside a chunk, 32 bytes:
@@ -77,7 +84,8 @@ static_assert(sizeof(MeshEntry) == 32 && offsetof(MeshEntry, triangles) == 24);
 // Resident mesh table entry (kMeshTable), 32 bytes:
 //   0  uint32 segment        mesh segment holding its BVH, or 0xFFFFFFFF for a unique mesh (stored
 //                            as pieces in batching points, in its local space)
-//   4  uint32 flags          bit 0: instanced (used by >= 2 instances)
+//   4  uint32 flags          bit 0: instanced (used by >= 2 instances); bit 1: its attribute entries
+//                            hold normals; bit 2: they hold TEXCOORD_0 (1.1)
 //   8  uint64 triangles
 //   16 uint32 source_prim_first  first entry of this mesh in kSourcePrims
 //   20 uint32 source_prim_count
@@ -115,5 +123,32 @@ struct BatchingPointDesc {
   uint32_t reserved;
 };
 static_assert(sizeof(BatchingPointDesc) == 64 && offsetof(BatchingPointDesc, chunk_id) == 56);
+
+inline constexpr uint32_t kNoAttribute = 0xFFFFFFFFu;
+
+// Attribute entry (kAttrEntries), 40 bytes — the vertex attributes of one MeshEntry (same index):
+//   0  uint32 id             = the MeshEntry's id (segment: scene mesh; batching point: piece index)
+//   4  uint32 mesh           the scene mesh whose triangles these are
+//   8  uint32 triangle_count = the MeshEntry's triangles (0 when the entry has no attribute)
+//   12 uint32 vertex_count
+//   16 uint64 triangle_first first triangle in kAttrTriangles
+//   24 uint32 normal_first   first vertex in kAttrNormals, or kNoAttribute
+//   28 uint32 uv_first       first vertex in kAttrUvs, or kNoAttribute
+//   32 uint32 tri_id_first   first entry in kAttrTriIds (pieces), or kNoAttribute (a whole mesh: the
+//                            leaf's prim is the attribute triangle index itself)
+//   36 uint32 reserved (0)
+struct AttributeEntry {
+  uint32_t id;
+  uint32_t mesh;
+  uint32_t triangle_count;
+  uint32_t vertex_count;
+  uint64_t triangle_first;
+  uint32_t normal_first;
+  uint32_t uv_first;
+  uint32_t tri_id_first;
+  uint32_t reserved;
+};
+static_assert(sizeof(AttributeEntry) == 40 && offsetof(AttributeEntry, triangle_first) == 16 &&
+              offsetof(AttributeEntry, tri_id_first) == 32);
 
 }  // namespace rtp::fmt

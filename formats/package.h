@@ -8,14 +8,14 @@ namespace rtp::fmt {
 
 inline constexpr char kMagic[8] = {'R', 'T', 'P', 'A', 'C', 'K', '\r', '\n'};
 inline constexpr uint32_t kVersionMajor = 1;  // a reader refuses another major version
-inline constexpr uint32_t kVersionMinor = 0;  // a reader accepts any minor version of its major
+inline constexpr uint32_t kVersionMinor = 1;  // 1.1: attribute chunks (kinds 18, 19), header flags  // a reader accepts any minor version of its major
 inline constexpr uint64_t kAlignment = 4096;  // every chunk and the TOC start at a multiple of this
 
 // File header at offset 0, 128 bytes (the first 4 KiB block is reserved for it), SPEC §1:
 //   0   char[8]  magic "RTPACK\r\n"
 //   8   uint32   version_major
 //   12  uint32   version_minor
-//   16  uint64   flags (none defined: 0)
+//   16  uint64   flags              HeaderFlags: which attribute streams the package holds
 //   24  uint64   file_size          bytes of the whole file
 //   32  uint64   toc_offset         multiple of 4096
 //   40  uint64   toc_count          number of TocEntry records
@@ -53,6 +53,10 @@ static_assert(offsetof(Header, toc_offset) == 32 && offsetof(Header, toc_crc32c)
               offsetof(Header, bounds_lo) == 72 && offsetof(Header, bvh_width) == 96 &&
               offsetof(Header, header_crc32c) == 124);
 
+// Header flags (SPEC §1.1). Unknown bits are ignored by readers.
+inline constexpr uint64_t kFlagNormals = 1;  // some attribute chunk holds normals
+inline constexpr uint64_t kFlagUvs = 2;      // some attribute chunk holds TEXCOORD_0
+
 // Chunk kinds (SPEC §3). Readers skip kinds they do not know.
 enum class ChunkKind : uint32_t {
   kMetadata = 1,        // resident: JSON (source, options, tool version, cameras, source map summary)
@@ -63,6 +67,8 @@ enum class ChunkKind : uint32_t {
   kSourceMap = 6,       // resident: per mesh triangle -> glTF (mesh, primitive, triangle)
   kBatchingPoint = 16,  // on demand: one batching point's unique geometry and instance list
   kMeshSegment = 17,    // on demand: several instanced meshes with their local-space BVHs
+  kSegmentAttributes = 18,  // on demand: normals/uvs of mesh segment `id` (only with --attributes)
+  kPointAttributes = 19,    // on demand: normals/uvs of batching point `id`'s pieces
 };
 
 // Compression of a chunk's stored bytes.

@@ -30,4 +30,15 @@ struct Hit {
 };
 static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 8 && offsetof(Hit, v) == 16);
 
+// 20 bytes per hit (rtpack-trace --shading, packages converted with --attributes): the shading
+// normal (the stored vertex normals interpolated with u, v, taken to world space by the inverse
+// transpose of the instance transform, normalized) and TEXCOORD_0 interpolated with u, v.
+// normal = (0,0,0) on a miss, when the package has no normals for that mesh, or when the
+// interpolated normal is zero; uv = (0,0) on a miss or without uvs.
+struct Shading {
+  float normal[3];
+  float uv[2];
+};
+static_assert(sizeof(Shading) == 20 && offsetof(Shading, uv) == 12);
+
 }  // namespace rtp::fmt

@@ -14,6 +14,7 @@
 #include "formats/chunk.h"
 #include "formats/top_level.h"
 #include "gltf_builder.h"
+#include "package_patch.h"
 #include "package/inspect.h"
 #include "package/package.h"
 #include "package/write_package.h"
@@ -54,11 +55,6 @@ Written write(const char* rel, int w, const fs::path& path, int zstd_level = 9) 
   return out;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
 struct ToolRun {
   int code;
   std::string out, err;
@@ -69,41 +65,6 @@ ToolRun inspect(const std::string& args, const fs::path& dir) {
                           (dir / "err").string();
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
-}
-
-// Edits the stored bytes of uncompressed chunk `index`, then re-seals its CRC, the TOC CRC and the
-// header CRC, so the container checks pass and only the invariants can catch the edit.
-void patch_chunk(const std::string& path, size_t index, const std::function<void(uint8_t*, size_t)>& edit) {
-  std::string f = slurp(path);
-  fmt::Header h;
-  std::memcpy(&h, f.data(), sizeof h);
-  fmt::TocEntry e;
-  char* entry = f.data() + h.toc_offset + index * h.toc_entry_size;
-  std::memcpy(&e, entry, sizeof e);
-  ASSERT_EQ(e.compression, uint32_t(fmt::Compression::kNone));
-  uint8_t* chunk = reinterpret_cast<uint8_t*>(f.data() + e.offset);
-  edit(chunk, e.stored_size);
-  e.crc32c = crc32c(chunk, e.stored_size);
-  std::memcpy(entry, &e, sizeof e);
-  h.toc_crc32c = crc32c(f.data() + h.toc_offset, h.toc_count * h.toc_entry_size);
-  h.header_crc32c = crc32c(&h, offsetof(fmt::Header, header_crc32c));
-  std::memcpy(f.data(), &h, sizeof h);
-  std::ofstream(path, std::ios::binary | std::ios::trunc).write(f.data(), std::streamsize(f.size()));
-}
-
-// A section of a chunk's bytes (formats/chunk.h), or null.
-template <class T>
-T* section(uint8_t* chunk, fmt::SectionType type, uint64_t* count = nullptr) {
-  fmt::ChunkHeader ch;
-  std::memcpy(&ch, chunk, sizeof ch);
-  for (uint32_t s = 0; s < ch.section_count; ++s) {
-    fmt::SectionEntry se;
-    std::memcpy(&se, chunk + sizeof ch + s * sizeof se, sizeof se);
-    if (se.type != uint32_t(type)) continue;
-    if (count) *count = se.count;
-    return reinterpret_cast<T*>(chunk + se.offset);
-  }
-  return nullptr;
 }
 
 // The TOC index and label of chunk (kind, id).

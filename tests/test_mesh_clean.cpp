@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "core/error.h"
 #include "mesh/mesh.h"
@@ -266,6 +267,190 @@ TEST(MeshClean, RejectsInvalidInput) {
   Mesh s = make_tetrahedron();
   s.source.pop_back();
   EXPECT_THROW(clean_mesh(s), Error);
+}
+
+// ---- vertex attributes (normals, uvs) -------------------------------------------------------------
+
+// One triangle corner by value: position, normal, uv (absent arrays read as zero).
+struct Corner {
+  Vec3f p, n;
+  Vec2f uv;
+  bool operator==(const Corner&) const = default;
+};
+
+Corner corner(const Mesh& m, size_t t, int k) {
+  const uint32_t v = m.indices[3 * t + k];
+  return {m.positions[v], m.normals.empty() ? Vec3f{} : m.normals[v], m.uvs.empty() ? Vec2f{} : m.uvs[v]};
+}
+
+// Every triangle of `after` has, corner by corner, the position, normal and uv of the triangle of
+// `before` its source entry names (source.triangle = the triangle's number in `before`).
+void expect_corners_kept(const Mesh& before, const Mesh& after) {
+  ASSERT_EQ(after.normals.size(), before.normals.empty() ? 0 : after.positions.size());
+  ASSERT_EQ(after.uvs.size(), before.uvs.empty() ? 0 : after.positions.size());
+  for (size_t t = 0; t < after.triangle_count(); ++t)
+    for (int k = 0; k < 3; ++k)
+      ASSERT_EQ(corner(after, t, k), corner(before, after.source[t].triangle, k))
+          << "triangle " << t << " corner " << k;
+}
+
+// A distinct normal and uv per vertex, derived from its number.
+void add_vertex_attributes(Mesh& m) {
+  m.normals.clear();
+  m.uvs.clear();
+  for (size_t v = 0; v < m.positions.size(); ++v) {
+    const double a = 0.37 * double(v);
+    m.normals.push_back({float(std::cos(a)), float(std::sin(a)), 0});
+    m.uvs.push_back({float(v) * 0.125f, 1 - float(v) * 0.0625f});
+  }
+}
+
+TEST(MeshClean, CompactionCarriesAttributes) {
+  Mesh m;
+  m.primitives = {SourcePrimitive{}};
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int i = 0; i < 9; ++i) m.positions.push_back({float(i), float(i * i), float(i % 2)});
+  m.positions[7] = {nan, 0, 0};
+  add_tri(m, 5, 1, 3);
+  add_tri(m, 0, 0, 2);  // degenerate: 0 and 2 become unused
+  add_tri(m, 3, 1, 8);
+  add_tri(m, 7, 4, 6);  // non-finite: 4, 6, 7 become unused
+  add_tri(m, 8, 1, 5);
+  add_vertex_attributes(m);
+  const Mesh before = m;
+  CleanReport r = clean_mesh(m);
+  EXPECT_EQ(r.unused_vertices_removed, 5u);
+  ASSERT_EQ(m.positions.size(), 4u);  // 1, 3, 5, 8
+  EXPECT_EQ(m.normals.size(), 4u);
+  EXPECT_EQ(m.uvs.size(), 4u);
+  EXPECT_EQ(source_triangles(m), (std::vector<uint32_t>{0, 2, 4}));
+  expect_corners_kept(before, m);
+  EXPECT_EQ(m.normals[2], before.normals[5]);
+  EXPECT_EQ(m.uvs[3], before.uvs[8]);
+
+  // Only one of the arrays present: the other stays empty.
+  Mesh uv_before = before;
+  uv_before.normals.clear();
+  Mesh only_uv = uv_before;
+  clean_mesh(only_uv, {.weld_eps = 0});
+  EXPECT_TRUE(only_uv.normals.empty());
+  EXPECT_EQ(only_uv.uvs.size(), only_uv.positions.size());
+  expect_corners_kept(uv_before, only_uv);
+  Mesh none = make_cube();
+  clean_mesh(none, {.weld_eps = 0});
+  EXPECT_TRUE(none.normals.empty());
+  EXPECT_TRUE(none.uvs.empty());
+}
+
+// The cube as 12 triangles on 36 vertices of their own (split_cube), each corner with its face's
+// normal and a uv from its position in the face: 24 distinct (position, normal, uv) corners.
+Mesh hard_edged_cube(float jitter) {
+  Mesh m = split_cube(jitter);
+  const Mesh cube = make_cube();
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const Vec3d a = to_d(cube.positions[cube.indices[3 * t]]);
+    const Vec3d n = cross(to_d(cube.positions[cube.indices[3 * t + 1]]) - a,
+                          to_d(cube.positions[cube.indices[3 * t + 2]]) - a);
+    const Vec3d u = n * (1.0 / length(n));
+    for (int k = 0; k < 3; ++k) {
+      const Vec3f p = cube.positions[cube.indices[3 * t + k]];
+      m.normals.push_back({float(u.x), float(u.y), float(u.z)});
+      // The two coordinates across the face (the one along the normal is constant on it).
+      const float s = std::abs(u.x) > 0.5 ? p.y : p.x, r = std::abs(u.z) > 0.5 ? p.y : p.z;
+      m.uvs.push_back({s * 0.5f + 0.5f, r * 0.5f + 0.5f});
+    }
+  }
+  return m;
+}
+
+TEST(MeshClean, WeldKeepsNormalAndUvSeams) {
+  // Exact duplicates with equal attributes merge; coincident vertices whose normals differ do not.
+  Mesh m = hard_edged_cube(0);
+  const Mesh before = m;
+  CleanReport r = clean_mesh(m, {.weld_eps = 0});
+  EXPECT_EQ(r.welded_vertices, 12u);
+  EXPECT_EQ(m.positions.size(), 24u);
+  EXPECT_EQ(m.normals.size(), 24u);
+  EXPECT_EQ(m.uvs.size(), 24u);
+  EXPECT_EQ(m.triangle_count(), 12u);
+  EXPECT_EQ(r.degenerate_removed, 0u);
+  expect_corners_kept(before, m);
+  // Welding again changes nothing: 3 normals at each of the 8 corner positions stay apart.
+  r = clean_mesh(m, {.weld_eps = 0});
+  EXPECT_EQ(r.welded_vertices, 0u);
+  EXPECT_EQ(m.positions.size(), 24u);
+
+  // Same with a tolerance: jittered copies within eps merge only with their own face's copies.
+  Mesh jittered = hard_edged_cube(1e-4f);
+  const Mesh jbefore = jittered;
+  r = clean_mesh(jittered, {.weld_eps = 1e-3});
+  EXPECT_EQ(r.welded_vertices, 12u);
+  EXPECT_EQ(jittered.positions.size(), 24u);
+  for (size_t t = 0; t < jittered.triangle_count(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = jittered.indices[3 * t + k];
+      const uint32_t w = jbefore.indices[3 * size_t(jittered.source[t].triangle) + k];
+      EXPECT_EQ(jittered.normals[v], jbefore.normals[w]);
+      EXPECT_EQ(jittered.uvs[v], jbefore.uvs[w]);
+    }
+
+  // Only the normals present: the same 24.
+  Mesh normals_only = hard_edged_cube(0);
+  normals_only.uvs.clear();
+  clean_mesh(normals_only, {.weld_eps = 0});
+  EXPECT_EQ(normals_only.positions.size(), 24u);
+  // Equal normals, differing uvs (a uv seam): still kept apart.
+  Mesh uv_seam = hard_edged_cube(0);
+  for (Vec3f& n : uv_seam.normals) n = {0, 0, 1};
+  for (size_t v = 0; v < uv_seam.uvs.size(); ++v) uv_seam.uvs[v].x += 10.0f * float(v / 6);  // per face
+  clean_mesh(uv_seam, {.weld_eps = 0});
+  EXPECT_EQ(uv_seam.positions.size(), 24u);
+  // Without attributes the cube welds to 8 vertices.
+  Mesh plain = hard_edged_cube(0);
+  plain.normals.clear();
+  plain.uvs.clear();
+  r = clean_mesh(plain, {.weld_eps = 0});
+  EXPECT_EQ(r.welded_vertices, 28u);
+  EXPECT_EQ(plain.positions.size(), 8u);
+}
+
+TEST(MeshClean, WeldComparesAttributeBits) {
+  // -0 and +0 in a normal are different bits: not merged (the comparison is bitwise).
+  Mesh m;
+  m.name = "bits";
+  m.primitives = {SourcePrimitive{}};
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 0}};
+  m.normals = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}, {-0.0f, 0, 1}};
+  add_tri(m, 0, 1, 2);
+  add_tri(m, 3, 2, 1);
+  CleanReport r = clean_mesh(m, {.weld_eps = 0.5});
+  EXPECT_EQ(r.welded_vertices, 0u);
+  m.normals[3] = {0, 0, 1};
+  r = clean_mesh(m, {.weld_eps = 0.5});
+  EXPECT_EQ(r.welded_vertices, 1u);
+  EXPECT_EQ(m.positions.size(), 3u);
+}
+
+TEST(MeshClean, RejectsAttributeSizeMismatch) {
+  for (int which = 0; which < 4; ++which) {
+    Mesh m = make_tetrahedron();
+    m.name = "lopsided";
+    if (which == 0) m.normals.resize(3);
+    if (which == 1) m.normals.resize(5);
+    if (which == 2) m.uvs.resize(1);
+    if (which == 3) m.uvs.resize(8);
+    try {
+      clean_mesh(m);
+      ADD_FAILURE() << "no throw for case " << which;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ExitCode::kInputInvalid);
+      EXPECT_NE(std::string(e.what()).find("lopsided"), std::string::npos) << e.what();
+    }
+  }
+  Mesh ok = make_tetrahedron();
+  ok.normals.resize(4);
+  ok.uvs.resize(4);
+  EXPECT_NO_THROW(clean_mesh(ok));
 }
 
 }  // namespace

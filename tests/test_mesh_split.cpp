@@ -132,5 +132,47 @@ TEST(MeshSplit, Deterministic) {
   }
 }
 
+// Every corner of every piece's triangle has the position, normal and uv of the same corner of the
+// source triangle (make_* meshes: source.triangle = the triangle's number in `mesh`).
+void check_split_attributes(const Mesh& mesh, uint32_t k) {
+  const std::vector<Mesh> pieces = split_mesh(mesh, k);
+  ASSERT_GT(pieces.size(), 1u);
+  for (const Mesh& p : pieces) {
+    ASSERT_EQ(p.normals.size(), mesh.normals.empty() ? 0 : p.positions.size());
+    ASSERT_EQ(p.uvs.size(), mesh.uvs.empty() ? 0 : p.positions.size());
+    for (size_t t = 0; t < p.triangle_count(); ++t)
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t v = p.indices[3 * t + c];
+        const uint32_t w = mesh.indices[3 * size_t(p.source[t].triangle) + c];
+        ASSERT_EQ(p.positions[v], mesh.positions[w]) << p.name << " triangle " << t;
+        if (!mesh.normals.empty()) {
+          ASSERT_EQ(p.normals[v], mesh.normals[w]) << p.name << " triangle " << t;
+        }
+        if (!mesh.uvs.empty()) {
+          ASSERT_EQ(p.uvs[v], mesh.uvs[w]) << p.name << " triangle " << t;
+        }
+      }
+  }
+}
+
+TEST(MeshSplit, PiecesCarryAttributes) {
+  Mesh sphere = make_icosphere(3);
+  sphere.normals = sphere.positions;
+  for (size_t v = 0; v < sphere.positions.size(); ++v)
+    sphere.uvs.push_back({float(v) * 0.5f, sphere.positions[v].z});  // distinct per vertex
+  for (uint32_t k : {100u, 17u, 1u}) check_split_attributes(sphere, k);
+  Mesh normals_only = sphere;
+  normals_only.uvs.clear();
+  check_split_attributes(normals_only, 40);
+  Mesh uvs_only = sphere;
+  uvs_only.normals.clear();
+  check_split_attributes(uvs_only, 40);
+  check_split_attributes(make_icosphere(2), 40);  // none: pieces have none either
+
+  Mesh bad = sphere;
+  bad.normals.pop_back();
+  EXPECT_THROW(split_mesh(bad, 40), Error);
+}
+
 }  // namespace
 }  // namespace rtp

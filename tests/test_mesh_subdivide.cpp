@@ -252,6 +252,122 @@ TEST(MeshSubdivide, AdaptiveIsDeterministic) {
   }
 }
 
+// ---- vertex attributes (normals, uvs) -------------------------------------------------------------
+
+// Normals = the (unit) positions of a sphere mesh.
+Mesh sphere_with_normals(int s) {
+  Mesh m = make_icosphere(s);
+  m.normals = m.positions;
+  return m;
+}
+
+// Every normal is unit length and within max_degrees of the direction of its vertex's position.
+void expect_radial_normals(const Mesh& m, double max_degrees) {
+  ASSERT_EQ(m.normals.size(), m.positions.size());
+  const double min_cos = std::cos(max_degrees * 3.14159265358979 / 180);
+  for (size_t v = 0; v < m.positions.size(); ++v) {
+    const Vec3d n = to_d(m.normals[v]), p = to_d(m.positions[v]);
+    ASSERT_NEAR(length(n), 1.0, 1e-5) << "vertex " << v;
+    ASSERT_GT(dot(n, p) / length(p), min_cos) << "vertex " << v;
+  }
+}
+
+// A 6 x 5 grid in z = 0 with its inner vertices moved off the lattice (irregular, so Loop moves
+// vertices away from edge midpoints), uv = (x, y).
+Mesh jittered_grid_with_uvs() {
+  Mesh m = make_grid(6, 5);
+  for (size_t v = 0; v < m.positions.size(); ++v) {
+    Vec3f& p = m.positions[v];
+    if (p.x > 0 && p.x < 6 && p.y > 0 && p.y < 5) {
+      p.x += 0.3f * float(std::sin(1.7 * double(v)));
+      p.y += 0.3f * float(std::cos(2.3 * double(v)));
+    }
+  }
+  for (const Vec3f& p : m.positions) m.uvs.push_back({p.x, p.y});
+  return m;
+}
+
+void expect_uv_is_xy(const Mesh& m) {
+  ASSERT_EQ(m.uvs.size(), m.positions.size());
+  for (size_t v = 0; v < m.positions.size(); ++v) {
+    ASSERT_NEAR(m.uvs[v].x, m.positions[v].x, 1e-6) << "vertex " << v;
+    ASSERT_NEAR(m.uvs[v].y, m.positions[v].y, 1e-6) << "vertex " << v;
+  }
+}
+
+TEST(MeshSubdivide, LoopInterpolatesNormalsAndRenormalizes) {
+  for (int n = 1; n <= 3; ++n) {
+    Mesh m = sphere_with_normals(1);
+    UniformSubdivideResult r = subdivide_uniform(m, n);
+    ASSERT_FALSE(r.used_fallback);
+    EXPECT_TRUE(m.uvs.empty());
+    // The normals follow the same stencils as the positions, so they stay radial.
+    expect_radial_normals(m, 0.1);
+  }
+  // A zero normal ("none given") everywhere stays zero.
+  Mesh zero = make_icosphere(0);
+  zero.normals.assign(zero.positions.size(), Vec3f{0, 0, 0});
+  subdivide_uniform(zero, 2);
+  ASSERT_EQ(zero.normals.size(), zero.positions.size());
+  for (const Vec3f& nv : zero.normals) EXPECT_EQ(nv, (Vec3f{0, 0, 0}));
+}
+
+TEST(MeshSubdivide, LoopKeepsAffineUvsAffine) {
+  const Mesh base = jittered_grid_with_uvs();
+  for (int n = 1; n <= 3; ++n) {
+    Mesh m = base;
+    subdivide_uniform(m, n);
+    EXPECT_TRUE(m.normals.empty());
+    expect_uv_is_xy(m);
+    // Meaningful only if Loop moved vertices off the midpoints: compare with the midpoint split.
+    Mesh mid = base;
+    subdivide_midpoint(mid, n);
+    EXPECT_NE(m.uvs, mid.uvs);
+  }
+}
+
+TEST(MeshSubdivide, MidpointInterpolatesAttributes) {
+  Mesh g = jittered_grid_with_uvs();
+  g.normals.assign(g.positions.size(), Vec3f{0, 0, 1});
+  g.normals[7] = {0, 0, 0};
+  subdivide_midpoint(g, 2);
+  expect_uv_is_xy(g);
+  ASSERT_EQ(g.normals.size(), g.positions.size());
+  for (const Vec3f& nv : g.normals) EXPECT_TRUE(nv == (Vec3f{0, 0, 1}) || nv == (Vec3f{0, 0, 0}));
+  EXPECT_EQ(g.normals[7], (Vec3f{0, 0, 0}));  // base vertices keep theirs
+
+  for (int n = 1; n <= 3; ++n) {
+    Mesh m = sphere_with_normals(1);
+    subdivide_midpoint(m, n);
+    EXPECT_TRUE(m.uvs.empty());
+    expect_radial_normals(m, 3);
+  }
+}
+
+TEST(MeshSubdivide, MeshesWithoutAttributesStayWithout) {
+  Mesh loop = make_icosphere(1), mid = make_cube();
+  subdivide_uniform(loop, 2);
+  subdivide_midpoint(mid, 2);
+  for (const Mesh* m : {&loop, &mid}) {
+    EXPECT_TRUE(m->normals.empty());
+    EXPECT_TRUE(m->uvs.empty());
+  }
+  Mesh bad = make_cube();
+  bad.uvs.resize(3);
+  EXPECT_THROW(subdivide_uniform(bad, 1), Error);
+  EXPECT_THROW(subdivide_midpoint(bad, 1), Error);
+}
+
+TEST(MeshSubdivide, AdaptiveCarriesAttributes) {
+  Scene s = two_instance_scene(3);
+  s.meshes[0].normals = s.meshes[0].positions;
+  for (const Vec3f& p : s.meshes[0].positions) s.meshes[0].uvs.push_back({p.x, p.y});
+  SubdivideReport r = subdivide_to_length(s, 0.5);
+  ASSERT_GT(r.meshes[0].levels, 0);
+  expect_radial_normals(s.meshes[0], 0.1);
+  expect_uv_is_xy(s.meshes[0]);
+}
+
 #if __has_include("scene/import.h") && !defined(RTP_MESH_TESTS_NO_IMPORT)
 TEST(MeshSubdivide, CleanAndSubdivideSuzanne) {
   const std::filesystem::path path = RTP_SOURCE_DIR "/samples/khronos/Suzanne/glTF/Suzanne.gltf";  // committed

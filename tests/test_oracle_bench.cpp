@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <set>
 #include <string>
@@ -113,6 +114,169 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
   EXPECT_EQ(widths, (std::set<int>{4, 8, 16}));
   EXPECT_EQ(builds, 3);
   EXPECT_EQ(sah, 6);  // W = 4, 8, 16 x collapse, split
+}
+
+// --convert: the tool's stdout and stderr, each into a file of `dir`; `env` is prefixed to the command.
+struct FullRun {
+  int code = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  FILE* f = std::fopen(p.c_str(), "rb");
+  std::string s;
+  if (!f) return s;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) s.append(buf.data(), n);
+  std::fclose(f);
+  return s;
+}
+
+FullRun run_full(const std::string& tool, const std::string& args, const fs::path& dir, const std::string& env = "") {
+  std::string cmd = env;
+  cmd += " ";
+  cmd += q(tool);
+  cmd += " ";
+  cmd += args;
+  cmd += " > ";
+  cmd += q((dir / "stdout").string());
+  cmd += " 2> ";
+  cmd += q((dir / "stderr").string());
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
+}
+
+class ConvertBench : public OracleBench {
+ protected:
+  fs::path dir;
+  void SetUp() override {
+    OracleBench::SetUp();
+    dir = fs::temp_directory_path() /
+          ("rtp_convert_bench_" + std::to_string(getpid()) + "_" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir);
+    fs::create_directories(dir / "tmp");
+  }
+  void TearDown() override { fs::remove_all(dir); }
+};
+
+// The record is structurally complete and true: the package it measured is the one rtpack-convert
+// writes (byte for byte), its sections add up to the file, every time was measured (> 0).
+TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
+  const std::string gallery = kSamples + "/generated/gallery.glb";
+  const std::string convert_tool = RTP_BINARY_DIR "/rtpack-convert";
+  ASSERT_TRUE(fs::exists(convert_tool));
+
+  // 1. Default run: the package goes to a temporary file in $TMPDIR, deleted afterwards.
+  const FullRun a = run_full(kTool, q(gallery) + " --convert --reps 1 --json", dir, "TMPDIR=" + q((dir / "tmp").string()));
+  ASSERT_EQ(a.code, 0) << a.err;
+  EXPECT_TRUE(fs::is_empty(dir / "tmp")) << "the temporary package was not deleted";
+  const json ja = json::parse(a.out);
+  ASSERT_TRUE(ja.is_array());
+  ASSERT_EQ(ja.size(), 1u);
+  const json& ra = ja[0];
+  EXPECT_EQ(ra["type"], "convert");
+  EXPECT_TRUE(ra["package"].is_null());
+  EXPECT_EQ(ra["threads"], ra["hardware_threads"]);
+
+  // 2. The same with --convert-output (kept) and one thread.
+  const fs::path kept = dir / "bench.rtp";
+  const FullRun b =
+      run_full(kTool, q(gallery) + " --convert --reps 1 --json --threads 1 --convert-output " + q(kept.string()), dir);
+  ASSERT_EQ(b.code, 0) << b.err;
+  const json r = json::parse(b.out).at(0);
+  ASSERT_TRUE(fs::exists(kept));
+  EXPECT_EQ(r["package"], kept.string());
+  EXPECT_EQ(r["threads"], 1);
+  EXPECT_EQ(r["reps"], 1);
+  EXPECT_EQ(r["scene"], gallery);
+  EXPECT_EQ(r["input_bytes"].get<uint64_t>(), fs::file_size(gallery));
+  EXPECT_EQ(r["input_total_bytes"], r["input_bytes"]);  // a .glb names no external file
+  const uint64_t package_bytes = r["package_bytes"].get<uint64_t>();
+  EXPECT_EQ(package_bytes, fs::file_size(kept));
+  EXPECT_EQ(package_bytes, ra["package_bytes"].get<uint64_t>());  // same bytes for any thread count
+
+  // 3. rtpack-convert with the same (default) options writes exactly the same file.
+  const fs::path tool_out = dir / "tool.rtp";
+  const FullRun c = run_full(convert_tool, q(gallery) + " -o " + q(tool_out.string()) + " --json", dir);
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_EQ(slurp(kept), slurp(tool_out)) << "rtpack-bench --convert and rtpack-convert wrote different packages";
+  const json tool = json::parse(c.out);
+  EXPECT_EQ(tool["output_bytes"].get<uint64_t>(), package_bytes);  // the whole file, TOC included
+  EXPECT_EQ(tool["chunks"], r["chunks"]);
+  EXPECT_EQ(tool["unique_triangles"], r["unique_triangles"]);
+  EXPECT_EQ(tool["instanced_triangles"], r["instanced_triangles"]);
+  EXPECT_EQ(r["instances"], 12);  // samples/generated/gallery.glb: 12 mesh nodes
+  EXPECT_EQ(tool["batching_points"], r["batching_points"]);
+  EXPECT_EQ(tool["mesh_segments"], r["mesh_segments"]);
+  EXPECT_EQ(tool["chunk_target"], r["chunk_target"]);
+
+  // Triangles and chunks.
+  const uint64_t unique = r["unique_triangles"].get<uint64_t>(), chunks = r["chunks"].get<uint64_t>();
+  EXPECT_GT(unique, 0u);
+  EXPECT_GE(r["instanced_triangles"].get<uint64_t>(), unique);
+  EXPECT_GT(chunks, 0u);
+  EXPECT_EQ(r["bvh_width"], 8);
+  EXPECT_EQ(r["leaf_width"], 8);
+  EXPECT_EQ(r["zstd_level"], 9);
+
+  // Sections: the chunks' stored bytes; the container (4 KiB header, TOC, alignment padding) is the rest.
+  uint64_t stored = 0, section_chunks = 0;
+  ASSERT_TRUE(r["sections"].is_object());
+  ASSERT_FALSE(r["sections"].empty());
+  for (const auto& [kind, s] : r["sections"].items()) {
+    SCOPED_TRACE(kind);
+    EXPECT_GT(s["stored_bytes"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["raw_bytes"].get<uint64_t>(), 0u);
+    EXPECT_EQ(s["stored_bytes"], tool["sections"][kind]["stored_bytes"]);
+    EXPECT_NEAR(s["bytes_per_unique_triangle"].get<double>(), double(s["stored_bytes"].get<uint64_t>()) / double(unique),
+                1e-9);
+    stored += s["stored_bytes"].get<uint64_t>();
+    section_chunks += s["chunks"].get<uint64_t>();
+  }
+  EXPECT_EQ(section_chunks, chunks);
+  EXPECT_EQ(r["sections_stored_bytes"].get<uint64_t>(), stored);
+  EXPECT_LE(stored, package_bytes);
+  EXPECT_LT(package_bytes - stored, 4096 * (chunks + 2));
+  EXPECT_EQ(r["container_bytes"].get<uint64_t>(), package_bytes - stored);
+  EXPECT_NEAR(r["bytes_per_unique_triangle"].get<double>(), double(package_bytes) / double(unique), 1e-9);
+
+  // Every time was measured; the ratios are the quotients of the printed times (never asserted on).
+  const json& sec = r["seconds"];
+  for (const char* stage : {"import", "prepare", "plan", "chunks"}) EXPECT_GT(sec[stage].get<double>(), 0) << stage;
+  const double sum = sec["import"].get<double>() + sec["prepare"].get<double>() + sec["plan"].get<double>() +
+                     sec["chunks"].get<double>();
+  EXPECT_NEAR(sec["total"].get<double>(), sum, 1e-9);
+  EXPECT_NEAR(sec["without_import"].get<double>(), sum - sec["import"].get<double>(), 1e-9);
+  const double embree = r["embree_high_build_seconds"].get<double>();
+  EXPECT_GT(embree, 0);
+  EXPECT_GT(r["embree_geometries"].get<uint64_t>(), 0u);
+  EXPECT_NEAR(r["ratio_embree_over_convert"].get<double>(), embree / sec["total"].get<double>(), 1e-9);
+  EXPECT_NEAR(r["ratio_embree_over_convert_without_import"].get<double>(), embree / sec["without_import"].get<double>(),
+              1e-9);
+  EXPECT_NEAR(r["ratio_embree_over_chunks"].get<double>(), embree / sec["chunks"].get<double>(), 1e-9);
+  EXPECT_GT(r["peak_rss_mib_convert"].get<double>(), 0);
+  EXPECT_GE(r["peak_rss_mib"].get<double>(), r["peak_rss_mib_convert"].get<double>());
+}
+
+TEST_F(ConvertBench, BadInputAndUsage) {
+  const FullRun missing = run_full(kTool, q((dir / "no-such-scene.glb").string()) + " --convert --reps 1", dir);
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("no-such-scene.glb"), std::string::npos) << missing.err;
+  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+
+  const std::string gallery = q(kSamples + "/generated/gallery.glb");
+  const FullRun unwritable = run_full(kTool, gallery + " --convert --reps 1 --convert-output /nonexistent/dir/x.rtp", dir);
+  EXPECT_EQ(unwritable.code, 4);
+  EXPECT_NE(unwritable.err.find("/nonexistent/dir/x.rtp"), std::string::npos) << unwritable.err;
+
+  EXPECT_EQ(run(gallery + " --convert-output x.rtp").code, 1);  // needs --convert
+  EXPECT_EQ(run(gallery + " --zstd-level 3").code, 1);          // needs --convert
+  EXPECT_EQ(run(gallery + " --convert --build-stats").code, 1);
+  EXPECT_EQ(run(gallery + " --convert --rays 100").code, 1);
+  EXPECT_EQ(run(gallery + " --convert --bvh-width 5").code, 1);
+  EXPECT_EQ(run(gallery + " --convert --threads 0").code, 1);
 }
 
 }  // namespace

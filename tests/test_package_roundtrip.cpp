@@ -269,7 +269,7 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
   EXPECT_EQ(caught, 1000);
   std::string v = bytes;
   v[8] = 2;
-  EXPECT_EQ(outcome(v), "package version 2.0 is not supported by this reader (version 1.x)");
+  EXPECT_EQ(outcome(v), "package version 2." + std::to_string(rtp::fmt::kVersionMinor) + " is not supported by this reader (version 1.x)");
 }
 
 }  // namespace

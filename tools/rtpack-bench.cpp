@@ -11,6 +11,9 @@
 //
 // Exit codes: 0 ok, 1 usage, 2 input unreadable, 3 invalid input (or no triangles), 5 rtpack disagreed
 // with Embree on some ray (the numbers are printed, but they are not worth anything).
+//
+// --convert instead times the converter (rtpack-convert's pipeline) against an Embree HIGH build of the
+// same prepared scene: tools/bench_convert.cpp.
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
@@ -33,6 +36,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "bench_convert.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
 #include "oracle/compare.h"
@@ -477,7 +481,25 @@ int main(int argc, char** argv) {
   app.add_option("--reps", cfg.reps, "timed repetitions, best taken (default 3)")->check(CLI::Range(1, 100));
   app.add_option("--seed", cfg.seed, "ray generator seed (default 1)");
   app.add_flag("--json", cfg.json, "print the records as a JSON array on stdout (the table goes to stderr)");
-  app.add_flag("--build-stats", cfg.build_stats, "also time BVH builds against Embree HIGH and print lib/bvh's SAH table");
+  auto* build_stats =
+      app.add_flag("--build-stats", cfg.build_stats, "also time BVH builds against Embree HIGH and print lib/bvh's SAH table");
+  bench::ConvertBenchConfig conv;
+  bool convert = false;
+  auto* convert_flag = app.add_flag(
+      "--convert", convert,
+      "instead of tracing: time rtpack-convert's pipeline (import, prepare, plan, chunks) against an Embree HIGH build "
+      "of the same prepared scene; --threads T runs both with T threads (default all); prints sizes per section");
+  app.add_option("--convert-output", conv.output, "--convert: keep the package here (default: a temporary file, deleted)")
+      ->needs(convert_flag);
+  app.add_option("--bvh-width", conv.bvh_width, "--convert: BVH width W, 4, 8 or 16 (leaf width W, 8 for W=16; default 8)")
+      ->check(CLI::IsMember({4, 8, 16}))->needs(convert_flag);
+  app.add_option("--zstd-level", conv.zstd_level, "--convert: zstd level per chunk, 0 = store (default 9)")
+      ->check(CLI::Range(0, 22))->needs(convert_flag);
+  app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
+      ->check(CLI::PositiveNumber)->needs(convert_flag);
+  for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
+    convert_flag->excludes(app.get_option(trace_only));
+  convert_flag->excludes(build_stats);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -519,6 +541,13 @@ int main(int argc, char** argv) {
   if (int(cfg.isa) > int(best)) return usage(std::string("this CPU does not support ") + isa + " (best: " + isa_name(best) + ")");
   g_progress = isatty(2) != 0;
   try {
+    if (convert) {
+      conv.scene_path = cfg.scene_path;
+      conv.threads = threads == "all" ? 0 : cfg.threads[0];
+      conv.reps = cfg.reps;
+      conv.json = cfg.json;
+      return bench::run_convert_bench(conv);
+    }
     return run(cfg);
   } catch (const Error& e) {
     progress_done();

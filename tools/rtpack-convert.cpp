@@ -22,14 +22,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
-std::string human(double bytes) {
-  const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB"};
-  int u = 0;
-  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
-  char b[32];
-  std::snprintf(b, sizeof b, u ? "%.1f %s" : "%.0f %s", bytes, unit[u]);
-  return b;
-}
+std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
 }  // namespace
 
@@ -40,6 +33,7 @@ int main(int argc, char** argv) {
   int scene_index = -1, subdivide = 0, width = 8, leaf_width = 0, zstd_level = 9, threads = 0;
   double weld = -1, subdivide_to = 0;
   uint64_t chunk_target = 0;
+  std::vector<std::string> attributes;
   app.add_option("input", input, "input .gltf or .glb")->required();
   app.add_option("-o,--output", output, "output package (.rtp)");
   app.add_flag("--dry-run", dry_run, "import and prepare only; print the scene summary");
@@ -58,6 +52,10 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--chunk-by", chunk_by, "count instanced (default) or unique triangles toward the target")
       ->check(CLI::IsMember({"instanced", "unique"}));
+  app.add_option("--attributes", attributes,
+                 "vertex attributes to store as separate per-chunk streams: normal, uv (comma-separated; default none)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"normal", "uv"}));
   app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default 9)")->check(CLI::Range(0, 22));
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
       ->check(CLI::PositiveNumber);
@@ -87,8 +85,14 @@ int main(int argc, char** argv) {
     progress.stage("import");
     rtp::ImportOptions opt;
     opt.scene = scene_index;
+    for (const std::string& a : attributes) (a == "normal" ? opt.normals : opt.uvs) = true;
     rtp::Scene scene = rtp::import_gltf(input, opt);
     const auto t1 = Clock::now();
+    for (const auto& [want, name] : {std::pair{opt.normals, "NORMAL"}, std::pair{opt.uvs, "TEXCOORD_0"}}) {
+      bool any = false;
+      for (const rtp::Mesh& m : scene.meshes) any |= !(name[0] == 'N' ? m.normals.empty() : m.uvs.empty());
+      if (want && !any) scene.warnings.push_back(std::string("--attributes: no mesh has ") + name + "; none stored");
+    }
     progress.stage("prepare");
     rtp::PrepareOptions prep;
     prep.clean.weld_eps = weld;
@@ -130,7 +134,8 @@ int main(int argc, char** argv) {
                    {"options",
                     {{"bvh_width", width}, {"leaf_width", leaf_width}, {"bvh_build", build}, {"chunk_target", chunk_target},
                      {"chunk_by", chunk_by}, {"zstd_level", zstd_level}, {"subdivide", subdivide},
-                     {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene}}}};
+                     {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
+                     {"attributes", attributes}}}};
     const rtp::ConvertReport rep = rtp::write_package(scene, plan, output, cv);
     const auto t4 = Clock::now();
     progress.finish();

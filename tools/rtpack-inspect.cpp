@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/progress.h"
 #include "package/inspect.h"
 #include "package/package.h"
 
@@ -24,14 +25,7 @@ std::string group(uint64_t v) {  // 12345678 -> 12,345,678
   return out;
 }
 
-std::string human(double bytes) {
-  const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB"};
-  int u = 0;
-  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
-  char b[32];
-  std::snprintf(b, sizeof b, u ? "%.1f %s" : "%.0f %s", bytes, unit[u]);
-  return b;
-}
+std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
 std::string num(const json& v, const char* f = "%.3f") {
   if (!v.is_number()) return "-";

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "package/package.h"
 #include "package/chunk_io.h"
+#include "package/attribute_lookup.h"
 #include "package/package_tracer.h"
 
 namespace {
@@ -113,6 +114,10 @@ int main(int argc, char** argv) {
   app.add_option("--make-camera-rays", make_rays,
                  "WxH: first write primary rays from the package's first camera (or an automatic one) to --rays");
   app.add_option("--hits", hits_path, "hit file to write: N x {t, instance, primitive, u, v} (or N bytes with --any)")->required();
+  std::string shading_path;
+  app.add_option("--shading", shading_path,
+                 "also write N x {normal xyz, u, v} float32: interpolated world normal and TEXCOORD_0 per hit "
+                 "(packages converted with --attributes)");
   app.add_flag("--any", any, "any-hit (occlusion): write one byte per ray, 1 = occluded");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
@@ -129,6 +134,10 @@ int main(int argc, char** argv) {
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
   try {
     rtp::check_output_path(hits_path);
+    if (!shading_path.empty()) {
+      if (any) throw rtp::Error(rtp::ExitCode::kUsage, "--shading needs closest hits: it cannot be used with --any");
+      rtp::check_output_path(shading_path);
+    }
     const rtp::PackageReader reader(package, direct);
     const auto tracer = rtp::load_package_in_core(reader);
     if (!make_rays.empty()) {
@@ -162,6 +171,15 @@ int main(int argc, char** argv) {
       write_atomically(hits_path, occ.data(), occ.size());
     } else {
       for (const auto& h : hits) hit_count += h.t != std::numeric_limits<float>::infinity();
+      if (!shading_path.empty()) {  // written first: the hit file appears only when everything succeeded
+        const rtp::AttributeLookup lookup(reader);
+        if (!lookup.has_normals() && !lookup.has_uvs())
+          std::cerr << "warning: " << package << ": no attribute streams (convert with --attributes normal,uv); "
+                    << "--shading writes zeros\n";
+        std::vector<rtp::fmt::Shading> shading(hits.size());
+        tbb::parallel_for(size_t(0), hits.size(), [&](size_t i) { shading[i] = lookup.shade(hits[i]); });
+        write_atomically(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
+      }
       write_atomically(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     }
     nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},

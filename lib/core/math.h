@@ -15,6 +15,11 @@ struct Vec3f {
   bool operator==(const Vec3f&) const = default;
 };
 
+struct Vec2f {
+  float x = 0, y = 0;
+  bool operator==(const Vec2f&) const = default;
+};
+
 struct Vec3d {
   double x = 0, y = 0, z = 0;
   double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }

@@ -52,4 +52,13 @@ void Progress::finish() {
   drawn_ = false;
 }
 
+std::string human_bytes(double bytes) {
+  const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
+  char b[32];
+  std::snprintf(b, sizeof b, u ? "%.1f %s" : "%.0f %s", bytes, unit[u]);
+  return b;
+}
+
 }  // namespace rtp

@@ -9,6 +9,7 @@ namespace rtp {
 
 double peak_rss_mib();     // getrusage max RSS
 double current_rss_mib();  // /proc/self/statm
+std::string human_bytes(double bytes);  // "512 B", "1.5 KiB", "2.3 MiB" ... (powers of 1024)
 
 class Progress {
  public:

@@ -50,10 +50,18 @@ int64_t cell_of(float c, double eps) {
   return int64_t(std::clamp(q, -kLimit, kLimit));
 }
 
+// Same attributes: bitwise equal normal and uv, each compared only when its array is present. A
+// normal or uv seam (hard edge, UV island border) has coincident vertices that must stay apart.
+bool same_attributes(const Mesh& mesh, uint32_t a, uint32_t b) {
+  if (!mesh.normals.empty() && std::memcmp(&mesh.normals[a], &mesh.normals[b], sizeof(Vec3f)) != 0)
+    return false;
+  return mesh.uvs.empty() || std::memcmp(&mesh.uvs[a], &mesh.uvs[b], sizeof(Vec2f)) == 0;
+}
+
 // Deterministic welding: vertices are visited in index order; each one merges into the lowest-index
-// representative within eps (L-infinity) found in the 27 neighbouring cells, or becomes a
-// representative itself. Merging is never transitive (every merged vertex is within eps of its
-// representative), and the result does not depend on hash-map iteration order.
+// representative within eps (L-infinity) with the same attributes found in the 27 neighbouring
+// cells, or becomes a representative itself. Merging is never transitive (every merged vertex is
+// within eps of its representative), and the result does not depend on hash-map iteration order.
 uint64_t weld_vertices(const Mesh& mesh, const std::vector<char>& referenced, double eps,
                        std::vector<uint32_t>& remap) {
   remap.resize(mesh.positions.size());
@@ -75,7 +83,7 @@ uint64_t weld_vertices(const Mesh& mesh, const std::vector<char>& referenced, do
           for (uint32_t r : it->second) {
             const Vec3f& q = mesh.positions[r];
             if (r < best && std::abs(double(p.x) - q.x) <= eps && std::abs(double(p.y) - q.y) <= eps &&
-                std::abs(double(p.z) - q.z) <= eps)
+                std::abs(double(p.z) - q.z) <= eps && same_attributes(mesh, v, r))
               best = r;
           }
         }
@@ -218,7 +226,7 @@ CleanReport clean_mesh(Mesh& mesh, const CleanOptions& opt) {
       kept.push_back(t);
   }
 
-  // 4. Rebuild: kept triangles in order, referenced vertices in order.
+  // 4. Rebuild: kept triangles in order, referenced vertices (with their attributes) in order.
   mesh_detail::extract_triangles(mesh, kept, mesh, &remap);
   report.unused_vertices_removed = old_vertices - mesh.positions.size() - report.welded_vertices;
 

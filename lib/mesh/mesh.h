@@ -4,8 +4,11 @@
 //
 // Every function keeps the per-triangle source map (Mesh::source) in step with Mesh::indices and
 // leaves Mesh::primitives as it is. Invalid input (an index >= positions.size(), indices.size() not a
-// multiple of 3, a source map that is neither empty nor one entry per triangle) throws rtp::Error
-// with ExitCode::kInputInvalid; bad arguments throw rtp::Error with ExitCode::kUsage.
+// multiple of 3, a source map that is neither empty nor one entry per triangle, a normals or uvs
+// array that is neither empty nor one entry per position) throws rtp::Error with
+// ExitCode::kInputInvalid; bad arguments throw rtp::Error with ExitCode::kUsage. The optional vertex
+// attributes (Mesh::normals, Mesh::uvs) follow their vertices through every operation; an empty
+// array stays empty.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -19,6 +22,8 @@ namespace rtp {
 struct CleanOptions {
   // < 0: no welding. >= 0: vertices whose coordinates all differ by <= weld_eps (L-infinity) are
   // merged into the lowest-index vertex already kept within reach (0 merges exact duplicates only).
+  // Only vertices with the same attributes merge: when Mesh::normals / Mesh::uvs are non-empty, the
+  // normal / uv must be bitwise equal too, so hard edges and UV seams survive welding.
   double weld_eps = -1;
 };
 
@@ -50,11 +55,14 @@ struct UniformSubdivideResult {
 // Uniform Loop subdivision (OpenSubdiv, VTX_BOUNDARY_EDGE_ONLY): exactly 4^levels triangles per input
 // triangle, child triangles grouped by parent in parent order, each mapped to its parent's source
 // entry. Vertices keep their indices' order as OpenSubdiv numbers them (unreferenced input vertices
-// are carried along). levels == 0 is a no-op; levels < 0 throws.
+// are carried along). Normals and uvs, when present, are interpolated as vertex primvars with the
+// same stencils as positions; normals are then renormalized (a zero or non-finite result is stored
+// as (0,0,0)). levels == 0 is a no-op; levels < 0 throws.
 UniformSubdivideResult subdivide_uniform(Mesh& mesh, int levels);
 
 // Midpoint (linear) 1-to-4 split, `levels` times: the fallback of subdivide_uniform, also usable on
 // its own. Same triangle order and source map rules as subdivide_uniform; positions are unchanged.
+// New vertices take the edge midpoint of position, normal (renormalized as above) and uv.
 void subdivide_midpoint(Mesh& mesh, int levels);
 
 // Longest edge (double) over all triangles; non-finite edge lengths are ignored. 0 for no triangles.
@@ -90,9 +98,9 @@ SubdivideReport subdivide_to_length(Scene& scene, double max_edge_length, int ma
 
 // Splits a mesh into pieces of at most max_triangles triangles: the leaves of a top-down binned SAH
 // BVH over triangle centroids (3 axes x 16 bins; median split by centroid when no bin split exists),
-// in left-to-right tree order. Each piece holds only its vertices (compacted, original order), its
-// triangles in original order with their source entries, the full primitives table, and the name
-// "<name>#<piece>". A mesh with no triangles gives no pieces. max_triangles == 0 throws.
+// in left-to-right tree order. Each piece holds only its vertices (compacted, original order, with
+// their normals/uvs when present), its triangles in original order with their source entries, the
+// full primitives table, and the name "<name>#<piece>". A mesh with no triangles gives no pieces. max_triangles == 0 throws.
 std::vector<Mesh> split_mesh(const Mesh& mesh, uint32_t max_triangles);
 
 }  // namespace rtp

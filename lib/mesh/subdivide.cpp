@@ -1,9 +1,10 @@
 // Loop subdivision (C. Loop, "Smooth Subdivision Surfaces Based on Triangles", 1987) through
 // OpenSubdiv: Far::TopologyRefiner with Sdc::SCHEME_LOOP and VTX_BOUNDARY_EDGE_ONLY (boundary edges
-// are infinitely sharp creases, corners are not pinned), uniform refinement, positions interpolated
-// level by level with Far::PrimvarRefinerReal<double>. Child faces are traced back to their base face
-// with TopologyLevel::GetFaceParentFace to carry the source map. Also: a midpoint 1-to-4 fallback and
-// the adaptive per-mesh level selection from the instances' largest scale.
+// are infinitely sharp creases, corners are not pinned), uniform refinement, positions and the
+// optional normals/uvs interpolated level by level as vertex primvars with
+// Far::PrimvarRefinerReal<double> (normals renormalized at the end). Child faces are traced back to
+// their base face with TopologyLevel::GetFaceParentFace to carry the source map. Also: a midpoint
+// 1-to-4 fallback and the adaptive per-mesh level selection from the instances' largest scale.
 #include <opensubdiv/far/error.h>
 #include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/topologyDescriptor.h>
@@ -28,16 +29,44 @@ namespace {
 namespace Far = OpenSubdiv::Far;
 namespace Sdc = OpenSubdiv::Sdc;
 
-// A position as PrimvarRefiner wants it: Clear() and AddWithWeight(), accumulated in double.
-struct DVertex {
-  double p[3];
-  void Clear(void* = nullptr) { p[0] = p[1] = p[2] = 0; }
-  void AddWithWeight(const DVertex& s, double w) {
-    p[0] += w * s.p[0];
-    p[1] += w * s.p[1];
-    p[2] += w * s.p[2];
+// A vertex primvar (position, normal: N = 3; uv: N = 2) as PrimvarRefiner wants it: Clear() and
+// AddWithWeight(), accumulated in double.
+template <int N>
+struct DPrimvar {
+  double p[N];
+  void Clear(void* = nullptr) {
+    for (double& c : p) c = 0;
+  }
+  void AddWithWeight(const DPrimvar& s, double w) {
+    for (int i = 0; i < N; ++i) p[i] += w * s.p[i];
   }
 };
+using DVertex = DPrimvar<3>;
+using DUv = DPrimvar<2>;
+
+// Unit-length float normal of an interpolated one; (0,0,0) when its length is 0 or not finite (a
+// "none given" normal stays none).
+Vec3f unit_normal(const Vec3d& n) {
+  const double len = length(n);
+  if (!(len > 0) || !std::isfinite(len)) return {0, 0, 0};
+  const Vec3d u = n * (1.0 / len);
+  return {float(u.x), float(u.y), float(u.z)};
+}
+
+// Interpolates one vertex primvar from the base level to `levels` (vertex rules, as positions).
+template <int N>
+std::vector<DPrimvar<N>> refine_primvar(const Far::TopologyRefiner& refiner, int levels,
+                                        std::vector<DPrimvar<N>> src) {
+  Far::PrimvarRefinerReal<double> primvar(refiner);
+  std::vector<DPrimvar<N>> dst;
+  for (int level = 1; level <= levels; ++level) {
+    dst.assign(size_t(refiner.GetLevel(level).GetNumVertices()), DPrimvar<N>{});
+    DPrimvar<N>* out = dst.data();
+    primvar.Interpolate(level, src.data(), out);
+    src.swap(dst);
+  }
+  return src;
+}
 
 // OpenSubdiv indexes with int: refuse sizes it cannot represent before allocating anything.
 void check_size(const Mesh& mesh, int levels, const char* what) {
@@ -82,16 +111,26 @@ void apply_loop(Mesh& mesh, Far::TopologyRefiner& refiner, int levels) {
   uniform.fullTopologyInLastLevel = false;
   refiner.RefineUniform(uniform);
 
-  // Positions, level by level (double), from the float base positions.
-  std::vector<DVertex> src(mesh.positions.size()), dst;
+  // Positions, level by level (double), from the float base positions; the attributes likewise.
+  std::vector<DVertex> src(mesh.positions.size());
   for (size_t v = 0; v < mesh.positions.size(); ++v)
     src[v] = {{mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z}};
-  Far::PrimvarRefinerReal<double> primvar(refiner);
-  for (int level = 1; level <= levels; ++level) {
-    dst.assign(size_t(refiner.GetLevel(level).GetNumVertices()), DVertex{});
-    DVertex* out = dst.data();
-    primvar.Interpolate(level, src.data(), out);
-    src.swap(dst);
+  src = refine_primvar(refiner, levels, std::move(src));
+  std::vector<Vec3f> normals;
+  if (!mesh.normals.empty()) {
+    std::vector<DVertex> n(mesh.normals.size());
+    for (size_t v = 0; v < n.size(); ++v) n[v] = {{mesh.normals[v].x, mesh.normals[v].y, mesh.normals[v].z}};
+    n = refine_primvar(refiner, levels, std::move(n));
+    normals.resize(n.size());
+    for (size_t v = 0; v < n.size(); ++v) normals[v] = unit_normal({n[v].p[0], n[v].p[1], n[v].p[2]});
+  }
+  std::vector<Vec2f> uvs;
+  if (!mesh.uvs.empty()) {
+    std::vector<DUv> uv(mesh.uvs.size());
+    for (size_t v = 0; v < uv.size(); ++v) uv[v] = {{mesh.uvs[v].x, mesh.uvs[v].y}};
+    uv = refine_primvar(refiner, levels, std::move(uv));
+    uvs.resize(uv.size());
+    for (size_t v = 0; v < uv.size(); ++v) uvs[v] = {float(uv[v].p[0]), float(uv[v].p[1])};
   }
 
   // Base face of every last-level face, following GetFaceParentFace up the levels.
@@ -123,13 +162,17 @@ void apply_loop(Mesh& mesh, Far::TopologyRefiner& refiner, int levels) {
   for (size_t v = 0; v < src.size(); ++v)
     positions[v] = {float(src[v].p[0]), float(src[v].p[1]), float(src[v].p[2])};
   mesh.positions = std::move(positions);
+  mesh.normals = std::move(normals);
+  mesh.uvs = std::move(uvs);
   mesh.indices = std::move(indices);
   mesh.source = std::move(source);
 }
 
 // One midpoint level: children (a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca), the same layout
-// as Loop's; one new vertex per undirected edge, numbered in first-use order.
+// as Loop's; one new vertex per undirected edge, numbered in first-use order. Its attributes are the
+// edge's midpoints too, the normal renormalized (unit_normal).
 void midpoint_level(Mesh& mesh) {
+  const bool has_normals = !mesh.normals.empty(), has_uvs = !mesh.uvs.empty();
   std::unordered_map<uint64_t, uint32_t> edge_vertex;
   edge_vertex.reserve(mesh.indices.size());
   auto mid = [&](uint32_t a, uint32_t b) {
@@ -138,6 +181,10 @@ void midpoint_level(Mesh& mesh) {
     if (inserted) {
       Vec3d m = (to_d(mesh.positions[a]) + to_d(mesh.positions[b])) * 0.5;
       mesh.positions.push_back({float(m.x), float(m.y), float(m.z)});
+      if (has_normals) mesh.normals.push_back(unit_normal(to_d(mesh.normals[a]) + to_d(mesh.normals[b])));
+      if (has_uvs)
+        mesh.uvs.push_back({float((double(mesh.uvs[a].x) + mesh.uvs[b].x) * 0.5),
+                            float((double(mesh.uvs[a].y) + mesh.uvs[b].y) * 0.5)});
     }
     return it->second;
   };

@@ -378,7 +378,11 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
   else c.problems.add("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
   // Unknown kinds are skipped by readers, but their checksums and frames are still checked.
   for (size_t i = 0; i < toc.size(); ++i)
-    if (!is_resident(toc[i].kind) && toc[i].kind != 16 && toc[i].kind != 17) load(c, i);
+    if (!is_resident(toc[i].kind) && toc[i].kind != 16 && toc[i].kind != 17) {
+      const std::optional<AlignedBytes> b = load(c, i);
+      const bool attr = toc[i].kind == uint32_t(ChunkKind::kSegmentAttributes) || toc[i].kind == uint32_t(ChunkKind::kPointAttributes);
+      if (b && attr && c.ver) c.ver->attributes(i, *b);
+    }
   if (c.ver) c.ver->finish();
 
   for (size_t i = 0; i < toc.size(); ++i)
@@ -389,7 +393,10 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
   const double tris = double(std::max<uint64_t>(1, h.unique_triangles));
   nlohmann::json j;
   j["file_bytes"] = h.file_size;
-  j["header"] = {{"version", std::to_string(h.version_major) + "." + std::to_string(h.version_minor)},
+  nlohmann::json attrs = nlohmann::json::array();
+  if (h.flags & fmt::kFlagNormals) attrs.push_back("normal");
+  if (h.flags & fmt::kFlagUvs) attrs.push_back("uv");
+  j["header"] = {{"version", std::to_string(h.version_major) + "." + std::to_string(h.version_minor)}, {"attributes", attrs},
                  {"bvh_width", w}, {"leaf_width", b}, {"unique_triangles", h.unique_triangles},
                  {"instanced_triangles", h.instanced_triangles}, {"toc_entries", h.toc_count},
                  {"bounds", {{"min", {h.bounds_lo[0], h.bounds_lo[1], h.bounds_lo[2]}},

@@ -13,6 +13,7 @@
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
 #include "formats/top_level.h"
+#include "package/inspect_attributes.h"
 #include "package/package.h"
 
 namespace rtp {
@@ -173,6 +174,7 @@ class Verifier {
   Verifier(const PackageReader& reader, const Resident& resident, Problems& problems);
   void segment(const SegmentData& s);
   void point(const PointData& p);
+  void attributes(size_t toc_index, const AlignedBytes& bytes);  // kinds 18, 19
   void finish();
 
  private:
@@ -186,6 +188,7 @@ class Verifier {
   std::vector<std::vector<uint8_t>> unique_cover_;   // per scene instance of a unique mesh: per triangle
   std::vector<uint8_t> mesh_in_segment_;             // per mesh: entries in segments
   std::vector<uint8_t> piece_seen_;                  // per piece id
+  AttributeChecker attrs_;
   uint64_t pieces_ = 0, segments_ = 0, points_ = 0;
 };
 

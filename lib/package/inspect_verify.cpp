@@ -82,7 +82,7 @@ Verifier::Verifier(const PackageReader& reader, const Resident& resident, Proble
 
 void Verifier::check_toc() {
   const fmt::Header& h = r_.header();
-  bool reserved = h.flags != 0;
+  bool reserved = (h.flags & ~(fmt::kFlagNormals | fmt::kFlagUvs)) != 0;
   for (uint8_t b : h.reserved) reserved |= b != 0;
   if (reserved) out_.add("header: flags or reserved bytes are not 0");
   const auto& toc = r_.toc();
@@ -248,6 +248,9 @@ void Verifier::check_top() {
 }
 
 void Verifier::segment(const SegmentData& s) {
+  std::vector<GeometryEntry> geo;
+  for (const fmt::MeshEntry& e : s.entries) geo.push_back({e.id, e.id, e.triangles, 0});
+  attrs_.geometry(uint32_t(ChunkKind::kMeshSegment), s.id, std::move(geo));
   for (size_t k = 0; k < s.entries.size(); ++k) {
     const fmt::MeshEntry& e = s.entries[k];
     const std::string what = s.label + ": mesh " + str(e.id);
@@ -343,6 +346,16 @@ void Verifier::point(const PointData& p) {
         out_.add(what + ": mesh " + str(p.slots[rec.mesh]) + ", the instance table says " + str(grec.mesh) + " for instance " + str(g));
     }
   }
+  std::vector<GeometryEntry> geo;
+  for (size_t k = 0; k < p.entries.size(); ++k)
+    geo.push_back({p.entries[k].id, kNone, p.entries[k].triangles, prim_set_hash(p.piece_prims[k])});
+  for (size_t k = 0; k < p.records.size() && k < p.global_ids.size(); ++k) {  // piece entry -> scene mesh
+    const uint32_t mesh_slot = p.records[k].mesh;
+    if (mesh_slot >= p.slots.size() || !(p.slots[mesh_slot] & fmt::kPieceBit)) continue;
+    const uint32_t entry = p.slots[mesh_slot] & ~fmt::kPieceBit;
+    if (entry < geo.size() && p.global_ids[k] < res_.instances.size()) geo[entry].mesh = res_.instances[p.global_ids[k]].mesh;
+  }
+  attrs_.geometry(uint32_t(ChunkKind::kBatchingPoint), p.id, std::move(geo));
   uint64_t unique = 0;
   for (size_t k = 0; k < p.entries.size(); ++k) {
     const fmt::MeshEntry& e = p.entries[k];
@@ -365,7 +378,13 @@ void Verifier::point(const PointData& p) {
              ", " + str(instances) + ", " + str(unique) + "+" + str(instanced_tris));
 }
 
+void Verifier::attributes(size_t i, const AlignedBytes& bytes) {
+  const fmt::TocEntry& e = r_.toc()[i];
+  attrs_.chunk(e.kind, e.id, chunk_label(e, i), bytes, out_);
+}
+
 void Verifier::finish() {
+  attrs_.finish(res_.meshes, r_.header().flags, out_);
   for (size_t g = 0; g < res_.instances.size(); ++g) {
     const uint32_t m = res_.instances[g].mesh;
     if (m >= res_.meshes.size()) continue;

@@ -45,7 +45,7 @@ class PackageWriter {
   // `header`), flushes, and renames the temporary file to `path`.
   void finish(fmt::Header header);
 
-  uint64_t bytes_written() const { return offset_; }
+  uint64_t bytes_written() const { return offset_; }  // after finish(): the file size
   const std::vector<fmt::TocEntry>& toc() const { return toc_; }
 
  private:

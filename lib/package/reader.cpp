@@ -33,6 +33,8 @@ const char* chunk_kind_name(uint32_t kind) {
     case fmt::ChunkKind::kSourceMap: return "source map";
     case fmt::ChunkKind::kBatchingPoint: return "batching point";
     case fmt::ChunkKind::kMeshSegment: return "mesh segment";
+    case fmt::ChunkKind::kSegmentAttributes: return "mesh segment attributes";
+    case fmt::ChunkKind::kPointAttributes: return "batching point attributes";
   }
   return "unknown kind";
 }

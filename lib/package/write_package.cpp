@@ -10,6 +10,7 @@
 
 #include "package/chunk_io.h"
 #include "package/package.h"
+#include "package/write_attributes.h"
 
 namespace rtp {
 namespace {
@@ -52,17 +53,27 @@ struct Job {
   uint64_t id;
   AlignedBytes raw;
   uint64_t node_bytes = 0, block_bytes = 0, triangles = 0;
+  AlignedBytes attr_raw{};  // the chunk's attribute stream (SPEC §4.4); empty when it has none
+  uint64_t attr_flags = 0;
+  void set_attributes(const AttributeChunkBuilder& ab, ChunkKind attr_kind) {
+    if (ab.empty()) return;
+    attr_raw = ab.finish(attr_kind);
+    attr_flags = (ab.has_normals() ? fmt::kFlagNormals : 0) | (ab.has_uvs() ? fmt::kFlagUvs : 0);
+  }
 };
 
 // A mesh segment: several instanced meshes, each with its BVH in local space (SPEC §4.3).
 template <int W, int B>
 void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOptions& bo, Job& job) {
   ChunkParts<W, B> parts;
+  AttributeChunkBuilder attrs;
   for (uint32_t m : seg.meshes) {
     const MeshBvh<W, B> bvh = build_mesh_bvh<W, B>(scene.meshes[m], bo);
     parts.append(bvh, m, scene.meshes[m].triangle_count());
+    attrs.add(m, m, scene.meshes[m], nullptr);
     job.triangles += scene.meshes[m].triangle_count();
   }
+  job.set_attributes(attrs, ChunkKind::kSegmentAttributes);
   ChunkBuilder cb(uint32_t(ChunkKind::kMeshSegment));
   cb.add(SectionType::kMeshEntries, parts.entries);
   cb.add(SectionType::kNodes, parts.nodes);
@@ -78,6 +89,7 @@ template <int W, int B>
 void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>& mesh_box, const BatchingPoint& bp,
                  const BuildOptions& bo, Job& job) {
   ChunkParts<W, B> parts;
+  AttributeChunkBuilder attrs;
   std::vector<fmt::InstanceRecord> records;
   std::vector<uint32_t> global_ids, slots;
   std::vector<Box3f> boxes;
@@ -88,6 +100,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
       for (int l = 0; l < B; ++l) blk.prim[l] = piece.prim[blk.prim[l]];
     const uint32_t entry = uint32_t(parts.entries.size());
     parts.append(bvh, k, piece.mesh.triangle_count());
+    attrs.add(k, scene.instances[piece.instance].mesh, piece.mesh, &piece.prim);
     job.triangles += piece.mesh.triangle_count();
     const Instance& src = scene.instances[piece.instance];
     fmt::InstanceRecord r = make_instance_record(src);  // pieces keep their mesh's local space
@@ -109,6 +122,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
     global_ids.push_back(i);
     boxes.push_back(transform_bounds(in.transform, &mesh_box[in.mesh], 1));
   }
+  job.set_attributes(attrs, ChunkKind::kPointAttributes);
   const BoxBvh<W> top = build_box_bvh<W>(boxes, bo, "batching point instance BVH");
   fmt::MeshEntry te{};
   te.id = 0xFFFFFFFFu;
@@ -205,7 +219,8 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
     const Mesh& mesh = scene.meshes[m];
     fmt::MeshInfo mi{};
     mi.segment = plan.mesh_segment[m];
-    mi.flags = plan.mesh_instanced[m] ? 1u : 0u;
+    mi.flags = (plan.mesh_instanced[m] ? fmt::kMeshInstanced : 0u) | (mesh.normals.empty() ? 0u : fmt::kMeshNormals) |
+               (mesh.uvs.empty() ? 0u : fmt::kMeshUvs);
     mi.triangles = mesh.triangle_count();
     mi.source_prim_first = uint32_t(prims.size());
     mi.source_prim_count = uint32_t(mesh.primitives.size());
@@ -233,7 +248,8 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { mesh_box[m] = box_of(scene.meshes[m].local_bounds()); });
   const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6;
   uint64_t next = 0, written = 0;
-  struct Packed { Job job; std::vector<uint8_t> stored; fmt::Compression comp; uint32_t crc; };
+  struct Packed { Job job; std::vector<uint8_t> stored, attr_stored; fmt::Compression comp, attr_comp; };
+  uint64_t header_flags = 0;
   auto record = [&](const Job& job, const fmt::TocEntry& e) {
     SectionBytes& s = rep.by_kind[chunk_kind_name(e.kind)];
     ++s.chunks;
@@ -269,17 +285,32 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                }
                                                p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
                                                                                   o.zstd_level, p.comp);
+                                               if (!p.job.attr_raw.empty())
+                                                 p.attr_stored = PackageWriter::compress(
+                                                     p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);
                                                return p;
                                              }) &
           tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
             const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.stored, p.comp, p.job.raw.size());
             record(p.job, e);
+            if (!p.job.attr_raw.empty()) {  // right after its geometry: one sequential read for both
+              const ChunkKind ak = p.job.kind == ChunkKind::kMeshSegment ? ChunkKind::kSegmentAttributes
+                                                                          : ChunkKind::kPointAttributes;
+              const fmt::TocEntry& ae = writer.add_packed(ak, p.job.id, p.attr_stored, p.attr_comp, p.job.attr_raw.size());
+              SectionBytes& s = rep.by_kind[chunk_kind_name(ae.kind)];
+              ++s.chunks;
+              s.raw += ae.raw_size;
+              s.stored += ae.stored_size;
+              ++rep.chunks;
+              header_flags |= p.job.attr_flags;
+            }
           }));
   for (Job& j : resident_jobs(scene, plan, o)) {
     const fmt::TocEntry& e = writer.add_chunk(j.kind, j.id, j.raw.data(), j.raw.size());
     record(j, e);
   }
   fmt::Header h{};
+  h.flags = header_flags;
   h.unique_triangles = scene.unique_triangles();
   h.instanced_triangles = scene.instanced_triangles();
   const Box3f b = box_of(scene.bounds);

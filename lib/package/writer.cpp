@@ -117,6 +117,7 @@ void PackageWriter::finish(fmt::Header h) {
   if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
     throw Error(ExitCode::kOutput, "cannot rename '" + tmp_ + "' to '" + path_ + "': " + std::strerror(errno));
   finished_ = true;
+  offset_ = h.file_size;  // bytes_written() is now the whole file, TOC included
 }
 
 }  // namespace rtp

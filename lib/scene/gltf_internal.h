@@ -53,7 +53,9 @@ std::vector<double> read_components(const tinygltf::Model& model, int accessor, 
                                     const std::string& pointer);
 
 // Builds one Mesh from all triangle primitives of glTF mesh `gltf_mesh`.
-Mesh build_mesh(const tinygltf::Model& model, int gltf_mesh, std::vector<std::string>& warnings);
+// `normals` / `uvs`: also read NORMAL / TEXCOORD_0 (see ImportOptions).
+Mesh build_mesh(const tinygltf::Model& model, int gltf_mesh, std::vector<std::string>& warnings, bool normals = false,
+                bool uvs = false);
 
 // Walks the node hierarchy of glTF scene `scene` (-1: every root node): appends instances (with
 // EXT_mesh_gpu_instancing expanded) whose `mesh` is the *glTF* mesh index, and cameras.

@@ -36,7 +36,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   std::vector<std::exception_ptr> errors(order.size());
   tbb::parallel_for(size_t(0), order.size(), [&](size_t i) {
     try {
-      built[i] = gltf::build_mesh(doc.model, int(order[i]), mesh_warnings[i]);
+      built[i] = gltf::build_mesh(doc.model, int(order[i]), mesh_warnings[i], options.normals, options.uvs);
     } catch (...) {
       errors[i] = std::current_exception();
     }

@@ -10,6 +10,9 @@ namespace rtp {
 
 struct ImportOptions {
   int scene = -1;  // -1: the file's default scene (or scene 0 when none is set)
+  // Optional vertex attributes (Mesh::normals / Mesh::uvs). Off by default: store no more than asked.
+  bool normals = false;  // glTF NORMAL (float or normalized byte/short, KHR_mesh_quantization)
+  bool uvs = false;      // glTF TEXCOORD_0 (float or normalized unsigned byte/short)
   std::function<void(const std::string&)> on_warning;  // also collected in Scene::warnings
 };
 

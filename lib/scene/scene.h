@@ -32,6 +32,12 @@ struct Mesh {
   std::vector<uint32_t> indices;             // 3 per triangle, all < positions.size()
   std::vector<SourcePrimitive> primitives;   // the glTF primitives this mesh was built from
   std::vector<TriangleSource> source;        // one per triangle
+  // Optional per-vertex attributes, loaded only when asked for (ImportOptions::attributes,
+  // rtpack-convert --attributes): each is empty or has exactly one entry per position.
+  // normals: glTF NORMAL (unit length; (0,0,0) = "none given" for vertices of a primitive without
+  // NORMAL in a mesh where another primitive has it). uvs: glTF TEXCOORD_0 ((0,0) likewise).
+  std::vector<Vec3f> normals;
+  std::vector<Vec2f> uvs;
 
   uint64_t triangle_count() const { return indices.size() / 3; }
   Aabb local_bounds() const;

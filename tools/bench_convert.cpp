@@ -1,0 +1,323 @@
+// rtpack-bench --convert: convert time vs an Embree 3 HIGH build of the same triangles, same process.
+//
+// The converter is run exactly as rtpack-convert runs it with its default options (import_gltf ->
+// prepare_scene -> plan_batching_points -> write_package, the same options and metadata), so the
+// package written here is byte-identical to `rtpack-convert SCENE -o OUT` with the same --bvh-width,
+// --zstd-level and --chunk-target (tests/test_oracle_bench.cpp checks it). Each repetition runs the
+// whole pipeline from the file (import included); one warm-up, then the best of --reps by total time;
+// the stage times reported are those of that best repetition. Embree is then built from the prepared
+// scene of the last repetition as --build-stats builds it (EmbreeOracle, RTC_BUILD_QUALITY_HIGH,
+// ROBUST, one instance per rtp::Instance): one warm-up, best of --reps. Both run in one
+// tbb::task_arena of --threads threads under a tbb::global_control of the same value.
+// Peak RSS (getrusage) is read after the convert repetitions and again after the Embree builds.
+#include "bench_convert.h"
+
+#include <sys/types.h>
+#include <unistd.h>
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cinttypes>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "cluster/cluster.h"
+#include "core/error.h"
+#include "core/progress.h"
+#include "mesh/prepare.h"
+#include "oracle/embree_oracle.h"
+#include "package/package.h"
+#include "package/write_package.h"
+#include "scene/import.h"
+
+namespace rtp::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+std::string cpu_model() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("model name", 0) == 0) {
+      const size_t p = line.find(':');
+      if (p != std::string::npos) return line.substr(p + 2);
+    }
+  return "unknown";
+}
+
+std::string human(double bytes) { return rtp::human_bytes(bytes); }
+
+std::string percent_decode(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit((unsigned char)s[i + 1]) && std::isxdigit((unsigned char)s[i + 2])) {
+      out += char(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+// The input file's size plus, for a .gltf, the external buffers and images it names by URI (a .glb
+// carries them inside). Only files that exist are counted.
+uint64_t input_total_bytes(const std::string& path) {
+  uint64_t total = fs::file_size(path);
+  if (fs::path(path).extension() != ".gltf") return total;
+  std::ifstream f(path);
+  const json doc = json::parse(f, nullptr, /*allow_exceptions=*/false);
+  if (!doc.is_object()) return total;
+  const fs::path dir = fs::path(path).parent_path();
+  for (const char* key : {"buffers", "images"}) {
+    if (!doc.contains(key) || !doc[key].is_array()) continue;
+    for (const json& b : doc[key]) {
+      if (!b.is_object() || !b.contains("uri") || !b["uri"].is_string()) continue;
+      const std::string uri = b["uri"].get<std::string>();
+      if (uri.rfind("data:", 0) == 0) continue;
+      std::error_code ec;
+      const uint64_t n = fs::file_size(dir / percent_decode(uri), ec);
+      if (!ec) total += n;
+    }
+  }
+  return total;
+}
+
+// One run of the converter pipeline, as rtpack-convert runs it.
+struct ConvertRun {
+  double import_s = 0, prepare_s = 0, plan_s = 0, chunks_s = 0;
+  double total() const { return import_s + prepare_s + plan_s + chunks_s; }
+  double without_import() const { return prepare_s + plan_s + chunks_s; }
+  ConvertReport report;
+  uint64_t unique = 0, instanced = 0, instances = 0, chunk_target = 0;
+  size_t points = 0, segments = 0;
+  std::vector<std::string> warnings;
+};
+
+ConvertRun convert_once(const ConvertBenchConfig& cfg, int leaf_width, const std::string& output, Progress& progress,
+                        const std::string& label, std::optional<Scene>* keep) {
+  ConvertRun r;
+  const auto t0 = Clock::now();
+  progress.stage(label + "import");
+  ImportOptions opt;  // rtpack-convert: only --scene is set, -1 by default
+  Scene scene = import_gltf(cfg.scene_path, opt);
+  const auto t1 = Clock::now();
+  progress.stage(label + "prepare");
+  PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision
+  const double weld = -1, subdivide_to = 0;
+  const int subdivide = 0;
+  prep.clean.weld_eps = weld;
+  prep.subdivide_levels = subdivide;
+  prep.subdivide_to = subdivide_to;
+  (void)prepare_scene(scene, prep);
+  const auto t2 = Clock::now();
+  progress.stage(label + "batching points");
+  ClusterOptions co;
+  co.chunk_target = cfg.chunk_target;
+  co.chunk_by = ChunkBy::kInstanced;
+  const Plan plan = plan_batching_points(scene, co);
+  const auto t3 = Clock::now();
+  progress.stage(label + "chunks");
+  ConvertOptions cv;
+  cv.width = cfg.bvh_width;
+  cv.leaf_width = leaf_width;
+  cv.bvh.method = BuildMethod::kCollapse;
+  cv.zstd_level = cfg.zstd_level;
+  cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
+  // The metadata rtpack-convert writes (same keys, types and values), so the bytes are the same.
+  const std::string build = "collapse", chunk_by = "instanced";
+  cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
+                 {"source", fs::path(cfg.scene_path).filename().string()},
+                 {"options",
+                  {{"bvh_width", cfg.bvh_width}, {"leaf_width", leaf_width}, {"bvh_build", build},
+                   {"chunk_target", cfg.chunk_target}, {"chunk_by", chunk_by}, {"zstd_level", cfg.zstd_level},
+                   {"subdivide", subdivide}, {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
+                   {"attributes", json::array()}}}};  // rtpack-convert --attributes: none by default
+  r.report = write_package(scene, plan, output, cv);
+  const auto t4 = Clock::now();
+  progress.finish();
+  r.import_s = seconds(t0, t1);
+  r.prepare_s = seconds(t1, t2);
+  r.plan_s = seconds(t2, t3);
+  r.chunks_s = seconds(t3, t4);
+  r.unique = scene.unique_triangles();
+  r.instanced = scene.instanced_triangles();
+  r.instances = scene.instances.size();
+  r.chunk_target = plan.chunk_target;
+  r.points = plan.points.size();
+  r.segments = plan.segments.size();
+  r.warnings = scene.warnings;
+  if (keep) keep->emplace(std::move(scene));
+  return r;
+}
+
+// Removes the temporary package on every way out.
+struct RemoveOnExit {
+  std::string path;
+  ~RemoveOnExit() {
+    if (path.empty()) return;
+    std::error_code ec;
+    fs::remove(path, ec);
+  }
+};
+
+}  // namespace
+
+int run_convert_bench(const ConvertBenchConfig& cfg) {
+  const int leaf_width = cfg.bvh_width == 16 ? 8 : cfg.bvh_width;
+  if (!supported_widths(cfg.bvh_width, leaf_width))
+    throw Error(ExitCode::kUsage, "--bvh-width " + std::to_string(cfg.bvh_width) + " is not supported (4, 8 or 16)");
+  const int hw = std::max(1, tbb::info::default_concurrency());
+  const int threads = cfg.threads > 0 ? cfg.threads : hw;
+  const bool keep_output = !cfg.output.empty();
+  RemoveOnExit cleanup;
+  std::string output = cfg.output;
+  if (!keep_output) {
+    output = (fs::temp_directory_path() / ("rtpack-bench-convert-" + std::to_string(::getpid()) + ".rtp")).string();
+    cleanup.path = output;
+  }
+  check_output_path(output);  // before any work, as rtpack-convert
+
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  tbb::task_arena arena(threads);
+  Progress progress(true);  // only on a terminal
+
+  // Convert: one warm-up, then the best of reps by total time (each from the file, import included).
+  std::optional<ConvertRun> best;
+  std::optional<Scene> prepared;
+  std::vector<std::string> warnings;
+  arena.execute([&] {
+    for (int r = 0; r <= cfg.reps; ++r) {
+      const std::string label =
+          r == 0 ? "convert warm-up: " : "convert " + std::to_string(r) + "/" + std::to_string(cfg.reps) + ": ";
+      prepared.reset();
+      ConvertRun run = convert_once(cfg, leaf_width, output, progress, label, r == cfg.reps ? &prepared : nullptr);
+      if (r == 0) warnings = run.warnings;
+      if (r > 0 && (!best || run.total() < best->total())) best = std::move(run);
+    }
+  });
+  const double rss_convert = peak_rss_mib();
+  // The file's size on disk, as measured (not as reported).
+  const uint64_t package_bytes = fs::file_size(output);
+
+  // Embree HIGH from the prepared scene: one warm-up, then the best of reps.
+  double embree_s = std::numeric_limits<double>::infinity();
+  uint64_t embree_geometries = 0;
+  arena.execute([&] {
+    for (int r = 0; r <= cfg.reps; ++r) {
+      progress.stage(r == 0 ? "Embree HIGH warm-up" : "Embree HIGH " + std::to_string(r) + "/" + std::to_string(cfg.reps));
+      EmbreeOracle e(*prepared, OracleQuality::kHigh);
+      embree_geometries = e.geometry_count();
+      if (r > 0) embree_s = std::min(embree_s, e.build_seconds());
+    }
+  });
+  progress.finish();
+  const double rss_all = peak_rss_mib();
+
+  const ConvertRun& c = *best;
+  const double tris = double(std::max<uint64_t>(1, c.unique));
+  uint64_t sections_stored = 0;
+  json sections = json::object();
+  for (const auto& [kind, s] : c.report.by_kind) {
+    sections_stored += s.stored;
+    sections[kind] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
+                      {"bytes_per_unique_triangle", double(s.stored) / tris}};
+  }
+  const uint64_t container = package_bytes - std::min(package_bytes, sections_stored);
+  const uint64_t in_bytes = fs::file_size(cfg.scene_path), in_total = input_total_bytes(cfg.scene_path);
+  const std::string cpu = cpu_model();
+
+  if (cfg.json) {
+    json rec = {{"type", "convert"},
+                {"scene", cfg.scene_path},
+                {"input_bytes", in_bytes},
+                {"input_total_bytes", in_total},
+                {"package_bytes", package_bytes},
+                {"package", keep_output ? json(cfg.output) : json(nullptr)},
+                {"unique_triangles", c.unique},
+                {"instanced_triangles", c.instanced},
+                {"instances", c.instances},
+                {"stored_triangles", c.report.unique_triangles},
+                {"chunks", c.report.chunks},
+                {"batching_points", c.points},
+                {"mesh_segments", c.segments},
+                {"chunk_target", c.chunk_target},
+                {"bvh_width", cfg.bvh_width},
+                {"leaf_width", leaf_width},
+                {"zstd_level", cfg.zstd_level},
+                {"sections", sections},
+                {"sections_stored_bytes", sections_stored},
+                {"container_bytes", container},
+                {"bvh_node_raw_bytes", c.report.node_bytes},
+                {"bvh_block_raw_bytes", c.report.block_bytes},
+                {"bytes_per_unique_triangle", double(package_bytes) / tris},
+                {"seconds",
+                 {{"import", c.import_s},
+                  {"prepare", c.prepare_s},
+                  {"plan", c.plan_s},
+                  {"chunks", c.chunks_s},
+                  {"total", c.total()},
+                  {"without_import", c.without_import()}}},
+                {"embree_high_build_seconds", embree_s},
+                {"embree_geometries", embree_geometries},
+                {"ratio_embree_over_convert", embree_s / c.total()},
+                {"ratio_embree_over_convert_without_import", embree_s / c.without_import()},
+                {"ratio_embree_over_chunks", embree_s / c.chunks_s},
+                {"peak_rss_mib_convert", rss_convert},
+                {"peak_rss_mib", rss_all},
+                {"threads", threads},
+                {"hardware_threads", hw},
+                {"reps", cfg.reps},
+                {"cpu", cpu}};
+    std::cout << json::array({rec}).dump(1) << "\n";
+  }
+
+  FILE* o = cfg.json ? stderr : stdout;
+  for (const std::string& w : warnings) std::fprintf(o, "warning: %s: %s\n", cfg.scene_path.c_str(), w.c_str());
+  std::fprintf(o, "convert %s -> %s%s\n", cfg.scene_path.c_str(), output.c_str(), keep_output ? "" : " (temporary, deleted)");
+  std::fprintf(o, "cpu %s; %d of %d hardware threads; W=%d B=%d, zstd %d, chunk target %" PRIu64 "%s; best of %d after a warm-up\n",
+               cpu.c_str(), threads, hw, cfg.bvh_width, leaf_width, cfg.zstd_level, c.chunk_target,
+               cfg.chunk_target ? "" : " (derived)", cfg.reps);
+  std::fprintf(o, "triangles %" PRIu64 " unique, %" PRIu64 " instanced (%" PRIu64 " instances); %" PRIu64
+               " chunks (%zu batching points, %zu mesh segments)\n",
+               c.unique, c.instanced, c.instances, c.report.chunks, c.points, c.segments);
+  std::fprintf(o, "bytes %s input (%" PRIu64 " B; %" PRIu64 " B with external files) -> %s package (%" PRIu64 " B)\n",
+               human(double(in_bytes)).c_str(), in_bytes, in_total, human(double(package_bytes)).c_str(), package_bytes);
+  std::fprintf(o, "\n  %-40s %7s %12s %12s %10s\n", "section", "chunks", "raw B", "stored B", "B/unique");
+  for (const auto& [kind, s] : c.report.by_kind)
+    std::fprintf(o, "  %-40s %7" PRIu64 " %12" PRIu64 " %12" PRIu64 " %10.2f\n", kind.c_str(), s.chunks, s.raw, s.stored,
+                 double(s.stored) / tris);
+  std::fprintf(o, "  %-40s %7s %12s %12" PRIu64 " %10.2f\n", "container (header, TOC, 4 KiB padding)", "", "", container,
+               double(container) / tris);
+  std::fprintf(o, "  %-40s %7s %12s %12" PRIu64 " %10.2f\n", "package, all in", "", "", package_bytes,
+               double(package_bytes) / tris);
+  std::fprintf(o, "\n  %-40s %10s\n", "stage (best repetition)", "seconds");
+  std::fprintf(o, "  %-40s %10.4f\n", "import", c.import_s);
+  std::fprintf(o, "  %-40s %10.4f\n", "prepare", c.prepare_s);
+  std::fprintf(o, "  %-40s %10.4f\n", "plan (batching points)", c.plan_s);
+  std::fprintf(o, "  %-40s %10.4f\n", "chunks (BVH + zstd + write)", c.chunks_s);
+  std::fprintf(o, "  %-40s %10.4f\n", "convert total", c.total());
+  std::fprintf(o, "  %-40s %10.4f\n", "convert without import", c.without_import());
+  std::fprintf(o, "  %-40s %10.4f  (%" PRIu64 " instances)\n", "Embree 3 HIGH build (ROBUST)", embree_s, embree_geometries);
+  std::fprintf(o, "\n  Embree / convert %.3f, Embree / convert without import %.3f, Embree / chunks %.3f\n",
+               embree_s / c.total(), embree_s / c.without_import(), embree_s / c.chunks_s);
+  std::fprintf(o, "  peak RSS %.1f MiB after the convert runs, %.1f MiB after the Embree builds\n", rss_convert, rss_all);
+  return 0;
+}
+
+}  // namespace rtp::bench

@@ -1,0 +1,24 @@
+#pragma once
+// rtpack-bench --convert: the converter pipeline (as rtpack-convert runs it) timed stage by stage
+// against an Embree 3 HIGH build of the same prepared triangles and instances, in the same process.
+#include <cstdint>
+#include <string>
+
+namespace rtp::bench {
+
+struct ConvertBenchConfig {
+  std::string scene_path;
+  std::string output;         // --convert-output: keep the package there (else a temporary file, deleted)
+  int bvh_width = 8;          // leaf width = W, 8 for W = 16 (rtpack-convert's default)
+  int zstd_level = 9;
+  uint64_t chunk_target = 0;  // 0 = derived from the scene
+  int threads = 0;            // 0 = all hardware threads
+  int reps = 3;               // best of reps after one warm-up (convert and Embree alike)
+  bool json = false;
+};
+
+// Runs the benchmark; prints the table (stdout, or stderr when --json puts the record on stdout).
+// Throws rtp::Error like the converter (the caller names the input in the message).
+int run_convert_bench(const ConvertBenchConfig& cfg);
+
+}  // namespace rtp::bench
