@@ -64,6 +64,9 @@ void print_text(const std::string& path, const json& j) {
               human(double(u64(j["file_bytes"]))).c_str(), group(u64(h["toc_entries"])).c_str());
   std::printf("  version       %s; W = %llu (BVH width), B = %llu (leaf block)\n", h["version"].get<std::string>().c_str(),
               (unsigned long long)u64(h["bvh_width"]), (unsigned long long)u64(h["leaf_width"]));
+  std::string attrs;
+  for (const auto& a : h["attributes"]) attrs += (attrs.empty() ? "" : ", ") + a.get<std::string>();
+  std::printf("  attributes    %s\n", attrs.empty() ? "none (positions and ids only)" : (attrs + " (separate per-chunk streams)").c_str());
   std::printf("  triangles     %s unique, %s instanced; %s meshes, %s instances\n", group(u64(h["unique_triangles"])).c_str(),
               group(u64(h["instanced_triangles"])).c_str(), group(u64(j["meshes"])).c_str(), group(u64(j["instances"])).c_str());
   const json& b = h["bounds"];
