@@ -49,17 +49,6 @@ using nlohmann::json;
 
 double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
-std::string cpu_model() {
-  std::ifstream f("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("model name", 0) == 0) {
-      const size_t p = line.find(':');
-      if (p != std::string::npos) return line.substr(p + 2);
-    }
-  return "unknown";
-}
-
 std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
 std::string percent_decode(const std::string& s) {
@@ -318,6 +307,17 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                embree_s / c.total(), embree_s / c.without_import(), embree_s / c.chunks_s);
   std::fprintf(o, "  peak RSS %.1f MiB after the convert runs, %.1f MiB after the Embree builds\n", rss_convert, rss_all);
   return 0;
+}
+
+std::string cpu_model() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("model name", 0) == 0) {
+      const size_t p = line.find(':');
+      if (p != std::string::npos) return line.substr(p + 2);
+    }
+  return "unknown";
 }
 
 }  // namespace rtp::bench

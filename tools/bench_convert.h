@@ -21,4 +21,7 @@ struct ConvertBenchConfig {
 // Throws rtp::Error like the converter (the caller names the input in the message).
 int run_convert_bench(const ConvertBenchConfig& cfg);
 
+// The CPU's model name from /proc/cpuinfo ("unknown" when absent), for bench records.
+std::string cpu_model();
+
 }  // namespace rtp::bench

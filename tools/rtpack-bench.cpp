@@ -99,17 +99,6 @@ std::vector<std::string> split_list(const std::string& s) {
   return out;
 }
 
-std::string cpu_model() {
-  std::ifstream f("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("model name", 0) == 0) {
-      const size_t p = line.find(':');
-      if (p != std::string::npos) return line.substr(p + 2);
-    }
-  return "unknown";
-}
-
 // The rays of one kind and Embree's answers to them (the reference for the agreement check).
 struct KindData {
   RayKind kind;
@@ -354,7 +343,7 @@ int run(const Config& cfg) {
 
   uint64_t failures = 0;
   for (const Record& r : records) failures += r.agreement.failures;
-  const std::string cpu = cpu_model();
+  const std::string cpu = rtp::bench::cpu_model();
 
   if (cfg.json) {
     json out = json::array();
