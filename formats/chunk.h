@@ -57,6 +57,10 @@ enum class SectionType : uint32_t {
   kAttrNormals = 19,    // float[3][]       per vertex: unit normal in the mesh's local space
   kAttrUvs = 20,        // float[2][]       per vertex: TEXCOORD_0
   kAttrTriIds = 21,     // uint32[]         per piece triangle: its index in the scene mesh, ascending
+  // Occlusion culling (2.0), SPEC §4.5 and formats/dag.h:
+  kPointGrids = 22,     // DagGrid[]        per batching point (descriptors chunk): grid and DAG root
+  kDagNodes = 23,       // uint32[]         DAG pool node words (kind 7)
+  kDagLeaves = 24,      // uint64[]         DAG pool leaf masks (kind 7)
 };
 
 inline constexpr uint32_t kMeshInstanced = 1, kMeshNormals = 2, kMeshUvs = 4;  // MeshInfo::flags

@@ -7,8 +7,10 @@
 namespace rtp::fmt {
 
 inline constexpr char kMagic[8] = {'R', 'T', 'P', 'A', 'C', 'K', '\r', '\n'};
-inline constexpr uint32_t kVersionMajor = 1;  // a reader refuses another major version
-inline constexpr uint32_t kVersionMinor = 1;  // 1.1: attribute chunks (kinds 18, 19), header flags  // a reader accepts any minor version of its major
+inline constexpr uint32_t kVersionMajor = 2;  // a reader refuses another major version
+inline constexpr uint32_t kVersionMinor = 0;  // a reader accepts any minor version of its major
+// History: 1.0 container; 1.1 attribute chunks (kinds 18, 19) and header flags; 2.0 occlusion-culling
+// DAGs (kind 7, per-point grids) and the header flag kFlagDag.
 inline constexpr uint64_t kAlignment = 4096;  // every chunk and the TOC start at a multiple of this
 
 // File header at offset 0, 128 bytes (the first 4 KiB block is reserved for it), SPEC §1:
@@ -56,6 +58,7 @@ static_assert(offsetof(Header, toc_offset) == 32 && offsetof(Header, toc_crc32c)
 // Header flags (SPEC §1.1). Unknown bits are ignored by readers.
 inline constexpr uint64_t kFlagNormals = 1;  // some attribute chunk holds normals
 inline constexpr uint64_t kFlagUvs = 2;      // some attribute chunk holds TEXCOORD_0
+inline constexpr uint64_t kFlagDag = 4;      // the package holds culling DAGs (kind 7, section 22)
 
 // Chunk kinds (SPEC §3). Readers skip kinds they do not know.
 enum class ChunkKind : uint32_t {
@@ -65,6 +68,7 @@ enum class ChunkKind : uint32_t {
   kInstances = 4,       // resident: InstanceRecord table
   kMeshes = 5,          // resident: mesh table (mesh -> segment, BVH root, triangle count)
   kSourceMap = 6,       // resident: per mesh triangle -> glTF (mesh, primitive, triangle)
+  kDagPool = 7,         // resident: the sparse voxel DAG pool shared by every batching point (2.0)
   kBatchingPoint = 16,  // on demand: one batching point's unique geometry and instance list
   kMeshSegment = 17,    // on demand: several instanced meshes with their local-space BVHs
   kSegmentAttributes = 18,  // on demand: normals/uvs of mesh segment `id` (only with --attributes)

@@ -297,7 +297,7 @@ TEST_F(Attributes, EveryCornerOfEveryChunkMatchesTheScene) {
         EXPECT_EQ(seen.count(uint32_t(m)) ? seen.at(uint32_t(m)) : 0, any ? s.meshes[m].triangle_count() : 0) << "mesh " << m;
       }
       const fmt::Header h = PackageReader(p).header();
-      EXPECT_EQ(h.flags, fmt::kFlagNormals | fmt::kFlagUvs);
+      EXPECT_EQ(h.flags, fmt::kFlagNormals | fmt::kFlagUvs | fmt::kFlagDag);
       const ToolRun v = run("rtpack-inspect", p + " --verify", dir);
       EXPECT_EQ(v.code, 0) << v.out << v.err;
     }
@@ -331,8 +331,8 @@ TEST_F(Attributes, NothingStoredUnlessAskedFor) {
   const ToolRun b = run("rtpack-convert", glb + " -o " + (dir / "uv.rtp").string() + " --attributes uv -q", dir);
   ASSERT_EQ(b.code, 0) << b.err;
   PackageReader plain((dir / "plain.rtp").string()), uv((dir / "uv.rtp").string());
-  EXPECT_EQ(plain.header().flags, 0u);
-  EXPECT_EQ(uv.header().flags, fmt::kFlagUvs);
+  EXPECT_EQ(plain.header().flags, fmt::kFlagDag);  // culling DAGs are on by default (2.0)
+  EXPECT_EQ(uv.header().flags, fmt::kFlagUvs | fmt::kFlagDag);
   for (const auto& e : plain.toc()) EXPECT_TRUE(e.kind != 18 && e.kind != 19) << chunk_kind_name(e.kind);
   // Geometry chunks are byte-identical with and without attributes: the streams are separate.
   uint64_t geometry = 0;
@@ -351,7 +351,7 @@ TEST_F(Attributes, NothingStoredUnlessAskedFor) {
                         dir);
   EXPECT_EQ(c.code, 0);
   EXPECT_NE(c.err.find("--attributes: no mesh has NORMAL; none stored"), std::string::npos) << c.err;
-  EXPECT_EQ(PackageReader((dir / "g.rtp").string()).header().flags, 0u);
+  EXPECT_EQ(PackageReader((dir / "g.rtp").string()).header().flags, fmt::kFlagDag);
   const ToolRun bad = run("rtpack-convert", glb + " -o " + (dir / "x.rtp").string() + " --attributes tangent", dir);
   EXPECT_EQ(bad.code, 1);
   EXPECT_FALSE(fs::exists(dir / "x.rtp"));

@@ -136,7 +136,8 @@ ConvertRun convert_once(const ConvertBenchConfig& cfg, int leaf_width, const std
                   {{"bvh_width", cfg.bvh_width}, {"leaf_width", leaf_width}, {"bvh_build", build},
                    {"chunk_target", cfg.chunk_target}, {"chunk_by", chunk_by}, {"zstd_level", cfg.zstd_level},
                    {"subdivide", subdivide}, {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
-                   {"attributes", json::array()}}}};  // rtpack-convert --attributes: none by default
+                   {"attributes", json::array()},  // rtpack-convert --attributes: none by default
+                   {"dag", true}, {"dag_resolution", uint32_t(0)}}}};  // culling DAGs on, resolution per point
   r.report = write_package(scene, plan, output, cv);
   const auto t4 = Clock::now();
   progress.finish();

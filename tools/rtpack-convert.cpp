@@ -59,6 +59,20 @@ int main(int argc, char** argv) {
   app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default 9)")->check(CLI::Range(0, 22));
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
       ->check(CLI::PositiveNumber);
+  bool no_dag = false;
+  uint32_t dag_resolution = 0;
+  app.add_flag("--no-dag", no_dag, "store no occlusion-culling DAGs (smaller package, no culling)");
+  app.add_option("--dag-resolution", dag_resolution,
+                 "cells per axis of every batching point's culling grid: a power of two, 4..1024 "
+                 "(default: chosen per point from its triangle count, 32..512)")
+      ->check([](const std::string& s) {
+        try {
+          const unsigned long v = std::stoul(s);
+          if (v >= 4 && v <= 1024 && (v & (v - 1)) == 0) return std::string();
+        } catch (...) {
+        }
+        return std::string("must be a power of two from 4 to 1024");
+      });
   app.add_flag("-q,--quiet", quiet, "no warnings or progress on stderr");
   app.add_flag("-v,--verbose", verbose, "stage times and peak memory on stderr");
   try {
@@ -128,6 +142,8 @@ int main(int argc, char** argv) {
     cv.leaf_width = leaf_width;
     cv.bvh.method = build == "split" ? rtp::BuildMethod::kSplit : rtp::BuildMethod::kCollapse;
     cv.zstd_level = zstd_level;
+    cv.dag = !no_dag;
+    cv.voxel.resolution = dag_resolution;
     cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
     cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
                    {"source", std::filesystem::path(input).filename().string()},
@@ -135,7 +151,7 @@ int main(int argc, char** argv) {
                     {{"bvh_width", width}, {"leaf_width", leaf_width}, {"bvh_build", build}, {"chunk_target", chunk_target},
                      {"chunk_by", chunk_by}, {"zstd_level", zstd_level}, {"subdivide", subdivide},
                      {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
-                     {"attributes", attributes}}}};
+                     {"attributes", attributes}, {"dag", !no_dag}, {"dag_resolution", dag_resolution}}}};
     const rtp::ConvertReport rep = rtp::write_package(scene, plan, output, cv);
     const auto t4 = Clock::now();
     progress.finish();
@@ -157,9 +173,16 @@ int main(int argc, char** argv) {
                         {"instanced_triangles", scene.instanced_triangles()},
                         {"bytes_per_unique_triangle", double(rep.file_bytes) / tris},
                         {"sections", sections},
+                        {"dag", nlohmann::json::object()},
                         {"seconds", {{"import", seconds(t0, t1)}, {"prepare", seconds(t1, t2)}, {"plan", seconds(t2, t3)},
                                      {"chunks", seconds(t3, t4)}, {"total", seconds(t0, t4)}}},
                         {"peak_rss_mib", rtp::peak_rss_mib()}};
+    if (cv.dag) {
+      nlohmann::json hist = nlohmann::json::object();
+      for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
+      j["dag"] = {{"pool_bytes", rep.dag_pool_bytes}, {"separate_bytes", rep.dag_separate_bytes},
+                  {"set_cells", rep.dag_set_cells}, {"resolutions", hist}, {"voxelize_seconds", rep.voxelize_seconds}};
+    }
     if (json) {
       std::cout << j.dump(2) << "\n";
     } else if (!quiet) {
@@ -174,6 +197,13 @@ int main(int argc, char** argv) {
       for (const auto& [kind, s] : rep.by_kind)
         std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
                     human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
+      if (cv.dag) {
+        std::string res;
+        for (const auto& [r, n] : rep.dag_resolutions) res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
+        std::printf("  culling DAGs   %s in one pool (%s if built apart), %llu set cells; %s; voxelized in %.2f s\n",
+                    human(double(rep.dag_pool_bytes)).c_str(), human(double(rep.dag_separate_bytes)).c_str(),
+                    (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);
+      }
       std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n",
                   seconds(t0, t1), seconds(t1, t2), seconds(t2, t3), seconds(t3, t4), rtp::peak_rss_mib());
     }

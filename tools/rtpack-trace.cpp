@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
   CLI::App app{"rtpack-trace: trace a ray file through a package"};
   std::string package, rays_path, hits_path, isa = "best", order = "octant";
   int threads = 0;
-  bool any = false, json = false, direct = false;
+  bool any = false, json = false, direct = false, no_cull = false;
   app.add_option("package", package, "the .rtp package")->required();
   std::string make_rays;
   app.add_option("--rays", rays_path, "ray file: N x {ox oy oz tnear dx dy dz tfar} float32")->required();
@@ -124,6 +124,7 @@ int main(int argc, char** argv) {
   app.add_option("--order", order, "traversal order: octant (stack) or active (Benthin's active list)")
       ->check(CLI::IsMember({"octant", "active"}));
   app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
+  app.add_flag("--no-cull", no_cull, "do not test rays against the batching points' culling DAGs (same hits, slower)");
   app.add_flag("--json", json, "print the counts as JSON on stdout");
   try {
     app.parse(argc, argv);
@@ -149,7 +150,8 @@ int main(int argc, char** argv) {
       write_atomically(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
     }
     const std::vector<rtp::fmt::Ray> rays = read_rays(rays_path);
-    rtp::TraceOptions opt;
+    rtp::PackageTraceOptions opt;
+    opt.cull = !no_cull;
     const rtp::Isa best = rtp::detect_isa();
     opt.isa = isa == "best" ? best : isa == "avx512" ? rtp::Isa::kAvx512 : isa == "avx2" ? rtp::Isa::kAvx2 : rtp::Isa::kScalar;
     if (int(opt.isa) > int(best))
@@ -157,12 +159,14 @@ int main(int argc, char** argv) {
     opt.order = order == "active" ? rtp::TraversalOrder::kActiveList : rtp::TraversalOrder::kOctantStack;
     std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size());
     std::vector<uint8_t> occ(any ? rays.size() : 0);
-    std::atomic<uint64_t> invalid{0};
+    std::atomic<uint64_t> invalid{0}, visits{0}, culled{0};
     const auto t0 = std::chrono::steady_clock::now();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-      const rtp::TraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
-                                     : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
+      const rtp::PackageTraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
+                                            : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
       invalid += st.invalid_rays;
+      visits += st.point_visits;
+      culled += st.culled_visits;
     });
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     uint64_t hit_count = 0;
@@ -186,11 +190,22 @@ int main(int argc, char** argv) {
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
+    // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
+    const bool culling = opt.cull && tracer->has_dags();
+    const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;
+    j["culling"] = culling ? "on" : (tracer->has_dags() ? "off (--no-cull)" : "off (package has no DAGs)");
+    j["batching_point_visits"] = visits.load();
+    j["culled_visits"] = culled.load();
+    j["cull_rate"] = rate;
     if (json) std::cout << j.dump(2) << "\n";
     else
-      std::fprintf(stderr, "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s)\n",
+      std::fprintf(stderr,
+                   "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s); "
+                   "batching-point visits %llu, culled %llu (%.1f%%, culling %s)\n",
                    rays.size(), (unsigned long long)hit_count, any ? "occluded" : "hits",
-                   (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str());
+                   (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str(),
+                   (unsigned long long)visits.load(), (unsigned long long)culled.load(), 100 * rate,
+                   j["culling"].get<std::string>().c_str());
   } catch (const rtp::Error& e) {
     std::cerr << "error: " << package << ": " << e.what() << "\n";
     return int(e.code());

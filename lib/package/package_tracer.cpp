@@ -9,8 +9,10 @@
 
 #include "core/error.h"
 #include "formats/chunk.h"
+#include "formats/dag.h"
 #include "formats/top_level.h"
 #include "package/chunk_io.h"
+#include "voxel/voxel.h"
 
 namespace rtp {
 
@@ -57,6 +59,7 @@ class Tracer final : public PackageTracer {
     const AlignedBytes& db = load(fmt::ChunkKind::kBatchingPoints, 0);
     ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), labels_.back());
     descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n_points);
+    load_dags(r, dv, n_points, load);
     // Segments: mesh id -> view.
     std::map<uint32_t, MeshBvhView<W, B>> segment_meshes;
     for (size_t i = 0; i < toc.size(); ++i) {
@@ -120,9 +123,24 @@ class Tracer final : public PackageTracer {
   }
 
   uint64_t batching_points() const override { return points_.size(); }
+  bool has_dags() const override { return grids_ != nullptr; }
 
-  TraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const TraceOptions& o) const override {
-    TraceStats st;
+  fmt::Hit trace_point(size_t p, const fmt::Ray& ray, const TraceOptions& o) const override {
+    fmt::Hit h{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
+    if (p >= points_.size() || !ray_is_valid(ray)) return h;
+    trace_closest<W, B>(points_[p].view, &ray, &h, 1, o);
+    if (h.t < kInf) h.instance = points_[p].global_ids[h.instance];
+    return h;
+  }
+
+  voxel::DagHit test_point_dag(size_t p, const fmt::Ray& ray) const override {
+    if (!grids_ || p >= points_.size()) return {false, double(ray.tnear)};
+    const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    return voxel::dag_first_entry(grids_[p], dag_, org, dir, ray.tnear, ray.tfar);
+  }
+
+  PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) const override {
+    PackageTraceStats st;
     st.rays = n;
     for (size_t i = 0; i < n; ++i) {
       hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
@@ -131,9 +149,11 @@ class Tracer final : public PackageTracer {
         continue;
       }
       fmt::Ray ray = rays[i];
-      traverse(ray, [&](const Point<W, B>& pt) {
+      traverse(ray, [&](const Point<W, B>& pt, size_t p) {
+        fmt::Ray local = ray;
+        if (!enter(p, local, o, st)) return false;
         fmt::Hit h;
-        trace_closest<W, B>(pt.view, &ray, &h, 1, o);
+        trace_closest<W, B>(pt.view, &local, &h, 1, o);
         if (h.t < hits[i].t) {
           hits[i] = h;
           hits[i].instance = pt.global_ids[h.instance];
@@ -145,8 +165,8 @@ class Tracer final : public PackageTracer {
     return st;
   }
 
-  TraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const TraceOptions& o) const override {
-    TraceStats st;
+  PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) const override {
+    PackageTraceStats st;
     st.rays = n;
     for (size_t i = 0; i < n; ++i) {
       occluded[i] = 0;
@@ -154,9 +174,11 @@ class Tracer final : public PackageTracer {
         ++st.invalid_rays;
         continue;
       }
-      traverse(rays[i], [&](const Point<W, B>& pt) {
+      traverse(rays[i], [&](const Point<W, B>& pt, size_t p) {
+        fmt::Ray local = rays[i];
+        if (!enter(p, local, o, st)) return false;
         uint8_t occ = 0;
-        trace_any<W, B>(pt.view, &rays[i], &occ, 1, o);
+        trace_any<W, B>(pt.view, &local, &occ, 1, o);
         occluded[i] = occ;
         return occ != 0;
       });
@@ -165,6 +187,44 @@ class Tracer final : public PackageTracer {
   }
 
  private:
+  // The DAG pool and per-point grids (SPEC §4.5), when the package has them; every grid's DAG passes
+  // voxel::check_dag() before any ray reads it.
+  template <class Load>
+  void load_dags(const PackageReader& r, const ChunkView& dv, uint64_t n_points, Load&& load) {
+    uint64_t n_grids = 0;
+    grids_ = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, n_grids, false);
+    if (!grids_) return;
+    const std::string desc_label = dv.label();
+    if (n_grids != n_points)
+      fail_invalid(desc_label + ": " + std::to_string(n_grids) + " culling grids for " + std::to_string(n_points) +
+                   " batching points");
+    if (r.find(fmt::ChunkKind::kDagPool, 0) < 0) fail_invalid(desc_label + ": culling grids but no DAG pool chunk");
+    const AlignedBytes& b = load(fmt::ChunkKind::kDagPool, 0);
+    ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), labels_.back());
+    dag_.words = v.get<uint32_t>(fmt::SectionType::kDagNodes, dag_.word_count);
+    dag_.leaves = v.get<uint64_t>(fmt::SectionType::kDagLeaves, dag_.leaf_count);
+    const std::string e = voxel::check_dags(grids_, n_grids, dag_);
+    if (!e.empty()) fail_invalid(labels_.back() + ": culling DAG of " + e);
+  }
+
+  // Molenaar 2019 §4.2: before a batching point's BVH is walked, its DAG is tested along the ray's
+  // interval; false = culled. Otherwise the walk starts at the first set cell's entry distance
+  // (rounded down to float; no hit of the point's geometry lies before it).
+  bool enter(size_t p, fmt::Ray& ray, const PackageTraceOptions& o, PackageTraceStats& st) const {
+    ++st.point_visits;
+    if (!o.cull || !grids_) return true;
+    const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    const voxel::DagHit h = voxel::dag_first_entry(grids_[p], dag_, org, dir, ray.tnear, ray.tfar);
+    if (h.culled) {
+      ++st.culled_visits;
+      return false;
+    }
+    float t = float(h.t_entry);
+    if (double(t) > h.t_entry) t = std::nextafter(t, -kInf);
+    if (t > ray.tnear) ray.tnear = t;
+    return true;
+  }
+
   static void check_entry(const fmt::MeshEntry& e, uint64_t nn, uint64_t nb, const std::string& label) {
     if (uint64_t(e.node_first) + e.node_count > nn || uint64_t(e.block_first) + e.block_count > nb)
       fail_invalid(label + ": BVH of mesh " + std::to_string(e.id) + " out of bounds");
@@ -187,7 +247,8 @@ class Tracer final : public PackageTracer {
       stack.pop_back();
       if (e.t > double(ray.tfar)) continue;
       if (e.ref & fmt::TopNode::kLeafBit) {
-        if (visit(points_[e.ref & ~fmt::TopNode::kLeafBit])) return;
+        const size_t p = e.ref & ~fmt::TopNode::kLeafBit;
+        if (visit(points_[p], p)) return;
         continue;
       }
       const fmt::TopNode& node = top_[e.ref];
@@ -222,6 +283,8 @@ class Tracer final : public PackageTracer {
   const fmt::TopNode* top_ = nullptr;
   uint64_t top_count_ = 0;
   std::vector<Point<W, B>> points_;
+  const fmt::DagGrid* grids_ = nullptr;  // one per batching point, or null: no culling
+  voxel::DagView dag_;
 };
 
 }  // namespace

@@ -9,16 +9,37 @@
 #include "formats/ray_file.h"
 #include "package/package.h"
 #include "trace/trace.h"
+#include "voxel/voxel.h"
 
 namespace rtp {
+
+struct PackageTraceOptions : TraceOptions {
+  // Test each ray against a batching point's culling DAG before walking its BVH (Molenaar 2019 §3.2),
+  // when the package has DAGs; the BVH walk then starts at the DAG's entry distance. The hits are the
+  // same either way (rtpack-trace --no-cull).
+  bool cull = true;
+};
+
+struct PackageTraceStats : TraceStats {
+  uint64_t point_visits = 0;   // batching points whose box a ray entered within its interval
+  uint64_t culled_visits = 0;  // of those, skipped because the DAG is empty along the ray
+};
 
 class PackageTracer {
  public:
   virtual ~PackageTracer() = default;
   // hits[i].instance is the scene instance index, hits[i].prim the triangle in its mesh.
-  virtual TraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const TraceOptions& options) const = 0;
-  virtual TraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const TraceOptions& options) const = 0;
+  virtual PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n,
+                                    const PackageTraceOptions& options) const = 0;
+  virtual PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n,
+                                const PackageTraceOptions& options) const = 0;
   virtual uint64_t batching_points() const = 0;
+  virtual bool has_dags() const = 0;
+  // One batching point on its own (for tests of culling): the closest hit of point p's geometry within
+  // the ray's interval, no culling (hit.instance = scene instance; t = +inf on a miss) ...
+  virtual fmt::Hit trace_point(size_t p, const fmt::Ray& ray, const TraceOptions& options) const = 0;
+  // ... and the DAG test the tracer would apply to the ray at point p (culled = false without DAGs).
+  virtual voxel::DagHit test_point_dag(size_t p, const fmt::Ray& ray) const = 0;
 };
 
 // Reads and checks every chunk of the package (throws rtp::Error naming a bad chunk).

@@ -31,6 +31,7 @@ const char* chunk_kind_name(uint32_t kind) {
     case fmt::ChunkKind::kInstances: return "instance table";
     case fmt::ChunkKind::kMeshes: return "mesh table";
     case fmt::ChunkKind::kSourceMap: return "source map";
+    case fmt::ChunkKind::kDagPool: return "DAG pool";
     case fmt::ChunkKind::kBatchingPoint: return "batching point";
     case fmt::ChunkKind::kMeshSegment: return "mesh segment";
     case fmt::ChunkKind::kSegmentAttributes: return "mesh segment attributes";
@@ -66,7 +67,9 @@ PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(pa
   if (std::memcmp(header_.magic, fmt::kMagic, 8) != 0) fail_invalid("not an rtpack package (bad magic)");
   if (header_.version_major != fmt::kVersionMajor)
     fail_invalid("package version " + std::to_string(header_.version_major) + "." + std::to_string(header_.version_minor) +
-                 " is not supported by this reader (version " + std::to_string(fmt::kVersionMajor) + ".x)");
+                 " is not supported by this reader (version " + std::to_string(fmt::kVersionMajor) + ".x)" +
+                 (header_.version_major < fmt::kVersionMajor ? ": it was written by an older rtpack-convert; convert the source again"
+                                                             : ""));
   const uint32_t hcrc = crc32c(&header_, offsetof(fmt::Header, header_crc32c));
   if (hcrc != header_.header_crc32c)
     fail_invalid("header checksum mismatch (stored " + hex32(header_.header_crc32c) + ", computed " + hex32(hcrc) + "): corrupt header");

@@ -6,8 +6,13 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include <chrono>
 #include <cmath>
 
+#include <atomic>
+#include <memory>
+
+#include "formats/dag.h"
 #include "package/chunk_io.h"
 #include "package/package.h"
 #include "package/write_attributes.h"
@@ -145,8 +150,10 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   job.raw = cb.finish();
 }
 
-// Resident sections: metadata, top level, descriptors, instances, meshes, source map (SPEC §4.1).
-std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
+// Resident sections: metadata, top level, descriptors (+ culling grids), DAG pool, instances, meshes,
+// source map (SPEC §4.1, §4.5). `grids` is empty without DAGs.
+std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o,
+                               const std::vector<fmt::DagGrid>& grids, const voxel::DagPool& pool) {
   std::vector<Job> jobs;
   auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
     Job j{kind, 0, cb.finish()};
@@ -162,6 +169,7 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   meta["batching_points"] = plan.points.size();
   meta["mesh_segments"] = plan.segments.size();
   meta["pieces"] = plan.pieces.size();
+  meta["dag"] = !grids.empty();
   nlohmann::json cams = nlohmann::json::array();
   for (const Camera& c : scene.cameras)
     cams.push_back({{"name", c.name}, {"type", c.type == Camera::Type::kPerspective ? "perspective" : "orthographic"},
@@ -204,7 +212,14 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   ChunkBuilder dc(uint32_t(ChunkKind::kBatchingPoints));
   dc.add(SectionType::kPointDescs, descs);
   dc.add(SectionType::kSegmentRefs, seg_refs);
+  if (!grids.empty()) dc.add(SectionType::kPointGrids, grids);
   add(ChunkKind::kBatchingPoints, dc);
+  if (!grids.empty()) {
+    ChunkBuilder pc(uint32_t(ChunkKind::kDagPool));
+    pc.add(SectionType::kDagNodes, pool.words());
+    pc.add(SectionType::kDagLeaves, pool.leaves());
+    add(ChunkKind::kDagPool, pc);
+  }
 
   std::vector<fmt::InstanceRecord> recs;
   for (const Instance& in : scene.instances) recs.push_back(make_instance_record(in));
@@ -246,9 +261,16 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   ConvertReport rep;
   std::vector<Box3f> mesh_box(scene.meshes.size());  // once per mesh, not per instance
   tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { mesh_box[m] = box_of(scene.meshes[m].local_bounds()); });
-  const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6;
+  const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6 + (o.dag ? 1 : 0);
   uint64_t next = 0, written = 0;
-  struct Packed { Job job; std::vector<uint8_t> stored, attr_stored; fmt::Compression comp, attr_comp; };
+  // Culling proxies (Molenaar 2019 §4.2): voxelized with each point's chunk in the parallel stage,
+  // joined to the one shared pool in point order in the serial stage (deterministic bytes).
+  std::unique_ptr<voxel::MeshProxies> mesh_proxies;
+  if (o.dag) mesh_proxies = std::make_unique<voxel::MeshProxies>(scene, plan);
+  std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
+  voxel::DagPool pool;
+  std::atomic<int64_t> voxel_ns{0};
+  struct Packed { Job job; std::vector<uint8_t> stored, attr_stored; fmt::Compression comp, attr_comp; voxel::PointProxy proxy; };
   uint64_t header_flags = 0;
   auto record = [&](const Job& job, const fmt::TocEntry& e) {
     SectionBytes& s = rep.by_kind[chunk_kind_name(e.kind)];
@@ -282,6 +304,13 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                } else {
                                                  p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
                                                  build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, p.job);
+                                                 if (o.dag) {
+                                                   const auto t0 = std::chrono::steady_clock::now();
+                                                   p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies,
+                                                                                   plan.points[k - n_seg], o.voxel);
+                                                   voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                                   std::chrono::steady_clock::now() - t0).count();
+                                                 }
                                                }
                                                p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
                                                                                   o.zstd_level, p.comp);
@@ -293,6 +322,14 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
           tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
             const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.stored, p.comp, p.job.raw.size());
             record(p.job, e);
+            if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
+              fmt::DagGrid g = p.proxy.grid;
+              g.root = pool.add(p.proxy.dag);
+              grids[p.job.id] = g;
+              rep.dag_separate_bytes += p.proxy.dag.bytes();
+              rep.dag_set_cells += p.proxy.set_cells;
+              ++rep.dag_resolutions[g.resolution];
+            }
             if (!p.job.attr_raw.empty()) {  // right after its geometry: one sequential read for both
               const ChunkKind ak = p.job.kind == ChunkKind::kMeshSegment ? ChunkKind::kSegmentAttributes
                                                                           : ChunkKind::kPointAttributes;
@@ -305,7 +342,10 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
               header_flags |= p.job.attr_flags;
             }
           }));
-  for (Job& j : resident_jobs(scene, plan, o)) {
+  rep.dag_pool_bytes = pool.bytes();
+  rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
+  if (o.dag) header_flags |= fmt::kFlagDag;
+  for (Job& j : resident_jobs(scene, plan, o, grids, pool)) {
     const fmt::TocEntry& e = writer.add_chunk(j.kind, j.id, j.raw.data(), j.raw.size());
     record(j, e);
   }

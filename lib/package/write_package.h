@@ -10,6 +10,7 @@
 
 #include "bvh/bvh.h"
 #include "cluster/cluster.h"
+#include "voxel/point_voxels.h"
 
 namespace rtp {
 
@@ -18,6 +19,8 @@ struct ConvertOptions {
   int leaf_width = 8;  // B: 4, 8 or 16 (combinations: see supported_widths())
   BuildOptions bvh;
   int zstd_level = 9;
+  bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
+  voxel::VoxelOptions voxel;   // resolution (0 = per point), thin (tests only)
   nlohmann::json metadata = nlohmann::json::object();  // merged into the metadata chunk
   // Called from the writing thread after each chunk: (chunks written, chunks total).
   std::function<void(uint64_t, uint64_t)> progress;
@@ -33,6 +36,11 @@ struct ConvertReport {
   std::map<std::string, SectionBytes> by_kind;  // "mesh segment", "batching point", "metadata", ...
   uint64_t node_bytes = 0, block_bytes = 0;     // raw BVH bytes over all chunks
   uint64_t unique_triangles = 0;                // triangles stored (pieces + segment meshes)
+  // Culling DAGs (0 without): pool bytes, the sum of each point's DAG built alone, set cells, and the
+  // resolution of every batching point.
+  uint64_t dag_pool_bytes = 0, dag_separate_bytes = 0, dag_set_cells = 0;
+  std::map<uint32_t, uint64_t> dag_resolutions;  // resolution -> batching points
+  double voxelize_seconds = 0;                   // summed over threads
 };
 
 // True for the (W, B) pairs the kernels are built for: (4,4) (8,8) (16,16) (8,4) (16,8).

@@ -1,0 +1,50 @@
+#pragma once
+// Occlusion-culling proxies (formats/SPEC.md §4.5, version 2.0): per batching point a conservative
+// voxel grid stored as a sparse voxel DAG whose nodes live in one pool shared by every batching point
+// of the package (Molenaar 2019 §3.3; Kämpe et al. 2013 bottom-up hashing).
+#include <cstddef>
+#include <cstdint>
+
+namespace rtp::fmt {
+
+// Child references in the DAG pool.
+inline constexpr uint32_t kDagEmpty = 0xFFFFFFFEu;  // nothing set (a root only: every ray is culled)
+inline constexpr uint32_t kDagFull = 0xFFFFFFFFu;   // every cell of the region set (a root only; children use the full mask)
+inline constexpr uint32_t kDagLeafEdge = 4;         // a leaf is a 4x4x4 block of cells: one uint64 mask
+inline constexpr uint32_t kDagMinResolution = 4, kDagMaxResolution = 1024;
+
+// Per batching point grid (section kPointGrids of the descriptors chunk), 32 bytes:
+//   0  float  origin[3]   world position of cell (0,0,0)'s minimum corner
+//   12 float  cell        edge of the cubic cells (world units, > 0)
+//   16 uint32 resolution  R cells per axis, a power of two in [4, 1024]; the root covers R^3 cells
+//   20 uint32 root        root reference at level log2(R/4) (level 0 = a leaf index, above = a node
+//                         word offset), or kDagEmpty / kDagFull
+//   24 float  margin      world distance every set cell was grown by when voxelizing (vertex and
+//                         instance-transform rounding; SPEC §4.5 states the bound)
+//   28 float  ray_rel     the ray test grows every cell further by ray_rel * (2 |org|_inf + 2 G),
+//                         G = max |coordinate| of the grid box (rounding of the ray in the kernels)
+struct DagGrid {
+  float origin[3];
+  float cell;
+  uint32_t resolution;
+  uint32_t root;
+  float margin;
+  float ray_rel;
+};
+static_assert(sizeof(DagGrid) == 32 && offsetof(DagGrid, cell) == 12 && offsetof(DagGrid, root) == 20 &&
+              offsetof(DagGrid, ray_rel) == 28);
+
+// DAG pool (chunk kind 7, resident): section kDagNodes (uint32 words) and kDagLeaves (uint64 masks).
+// An inner node at word offset o:
+//   word o       bits 0..7 child mask (child c = x | y << 1 | z << 2, 1 = the child's region is
+//                non-empty); bits 8..15 full mask (a subset of the child mask: the child's region is
+//                entirely set and has no reference); bits 16..31 zero
+//   words o+1..  one uint32 reference per child in the child mask but not in the full mask, in
+//                ascending child order: a word offset (children above level 0) or a leaf index
+//                (children at level 0). A node has at least one non-full child or a mask != 0xFF.
+// A leaf mask: bit x + 4y + 16z is the cell (x, y, z) of the 4^3 block; never 0, never all ones.
+// Identical nodes (same words) and identical leaves are stored once in the whole package.
+inline constexpr uint32_t dag_child_mask(uint32_t word) { return word & 0xFFu; }
+inline constexpr uint32_t dag_full_mask(uint32_t word) { return (word >> 8) & 0xFFu; }
+
+}  // namespace rtp::fmt

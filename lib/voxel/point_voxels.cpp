@@ -1,0 +1,209 @@
+// Voxelizing one batching point (Molenaar 2019 §4.2): pieces triangle by triangle, instances through
+// their meshes' coarse local occupancy, each through the exact inverse of the float world->local
+// matrix the tracer uses, with the margin of point_voxels.h.
+#include "voxel/point_voxels.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+#include "bvh/bvh.h"
+
+namespace rtp::voxel {
+namespace {
+
+constexpr double kU = 1.0 / 16777216.0;  // 2^-24: float unit roundoff
+constexpr double kSafety = 16;
+constexpr uint32_t kLocalRes = 32;
+
+float round_up(double v) {
+  float f = float(v);
+  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+float round_down(double v) {
+  float f = float(v);
+  if (double(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+double row_norm(const double m[12]) {  // infinity norm of the 3x3 part
+  double n = 0;
+  for (int r = 0; r < 3; ++r) n = std::max(n, std::fabs(m[4 * r]) + std::fabs(m[4 * r + 1]) + std::fabs(m[4 * r + 2]));
+  return n;
+}
+
+// The transform the tracer effectively applies to an instance's local geometry: the exact inverse of
+// its stored float world->local matrix (SPEC §2.4), and the error terms of point_voxels.h.
+struct Effective {
+  bool usable = false;
+  double minv[12];
+  double margin = 0, kappa = 0;
+  Vec3d apply(const Vec3d& p) const {
+    Vec3d o;
+    for (int r = 0; r < 3; ++r) o[r] = minv[4 * r] * p.x + minv[4 * r + 1] * p.y + minv[4 * r + 2] * p.z + minv[4 * r + 3];
+    return o;
+  }
+};
+
+Effective effective(const Instance& inst, const Aabb& local_bounds) {
+  Effective e;
+  const fmt::InstanceRecord rec = make_instance_record(inst);
+  bool zero = true;
+  for (float v : rec.world_to_local) zero = zero && v == 0;
+  if (zero) return e;  // singular: the tracer never hits it
+  Affine3x4 m;
+  for (int i = 0; i < 12; ++i) m.m[size_t(i)] = rec.world_to_local[i];
+  if (!invert_affine(m, e.minv)) return e;
+  double md[12];
+  for (int i = 0; i < 12; ++i) md[i] = rec.world_to_local[i];
+  const double ni = row_norm(e.minv), nm = row_norm(md);
+  double vmax = 0, tmax = 0;
+  for (int k = 0; k < 3; ++k) {
+    vmax = std::max({vmax, std::fabs(local_bounds.lo[k]), std::fabs(local_bounds.hi[k])});
+    tmax = std::max(tmax, std::fabs(md[4 * k + 3]));
+  }
+  e.margin = kSafety * kU * ni * (tmax + 2 * vmax);
+  e.kappa = ni * nm;
+  e.usable = std::isfinite(e.margin) && std::isfinite(e.kappa);
+  return e;
+}
+
+// World box of a local box through the effective transform (all 8 corners), grown by `grow`.
+void world_box(const Effective& e, const Vec3d& lo, const Vec3d& hi, double grow, Vec3d& wlo, Vec3d& whi) {
+  const double inf = std::numeric_limits<double>::infinity();
+  wlo = {inf, inf, inf};
+  whi = {-inf, -inf, -inf};
+  for (int c = 0; c < 8; ++c) {
+    const Vec3d p = e.apply({c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z});
+    for (int k = 0; k < 3; ++k) wlo[k] = std::min(wlo[k], p[k]), whi[k] = std::max(whi[k], p[k]);
+  }
+  for (int k = 0; k < 3; ++k) wlo[k] -= grow, whi[k] += grow;
+}
+
+}  // namespace
+
+uint32_t choose_resolution(uint64_t triangles) {
+  const double target = std::sqrt(double(std::max<uint64_t>(triangles, 1))) / 2;
+  uint32_t r = 32;
+  while (r < 512 && double(r) * std::sqrt(2.0) < target) r *= 2;  // nearest power of two (log scale)
+  return r;
+}
+
+MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.meshes.size()) {
+  std::vector<uint32_t> todo;
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m)
+    if (m < plan.mesh_instanced.size() && plan.mesh_instanced[m]) todo.push_back(m);
+  tbb::parallel_for(size_t(0), todo.size(), [&](size_t i) {
+    const Mesh& mesh = scene.meshes[todo[i]];
+    Proxy& p = proxies_[todo[i]];
+    const Aabb b = mesh.local_bounds();
+    if (b.empty()) return;
+    double ext = 0, mag = 0;
+    for (int k = 0; k < 3; ++k) ext = std::max(ext, b.hi[k] - b.lo[k]), mag = std::max({mag, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
+    // Double rounding of the edge tests only: local vertices are exact floats.
+    const double margin = 64 * std::numeric_limits<double>::epsilon() * (mag + ext);
+    p.cell = std::max((ext + 4 * margin) / kLocalRes * (1 + 1e-9), std::numeric_limits<double>::min() * 1e6);
+    p.origin = b.lo - Vec3d{margin, margin, margin};
+    Grid g(p.origin, p.cell, kLocalRes);
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+      voxelize_triangle(g, to_d(mesh.positions[mesh.indices[t]]), to_d(mesh.positions[mesh.indices[t + 1]]),
+                        to_d(mesh.positions[mesh.indices[t + 2]]), margin);
+    for (uint32_t r = kLocalRes;; r /= 2) {
+      Level lv{r, std::vector<uint8_t>(size_t(r) * r * r, 0)};
+      const uint32_t step = kLocalRes / r;
+      for (uint32_t z = 0; z < kLocalRes; ++z)
+        for (uint32_t y = 0; y < kLocalRes; ++y)
+          for (uint32_t x = 0; x < kLocalRes; ++x)
+            if (g.get(x, y, z)) lv.occupied[x / step + r * (y / step + size_t(r) * (z / step))] = 1;
+      p.levels.insert(p.levels.begin(), std::move(lv));
+      if (r == 1) break;
+    }
+  });
+}
+
+PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes, const BatchingPoint& bp,
+                          const VoxelOptions& o) {
+  PointProxy out;
+  // Error terms first: they size the grid.
+  std::vector<Effective> piece_eff(bp.pieces.size()), inst_eff(bp.instances.size());
+  double margin = 0, kappa = 1;
+  for (size_t i = 0; i < bp.pieces.size(); ++i) {
+    const UniquePiece& pc = plan.pieces[bp.pieces[i]];
+    piece_eff[i] = effective(scene.instances[pc.instance], pc.mesh.local_bounds());
+  }
+  for (size_t i = 0; i < bp.instances.size(); ++i) {
+    const Instance& in = scene.instances[bp.instances[i]];
+    inst_eff[i] = effective(in, scene.meshes[in.mesh].local_bounds());
+  }
+  for (const auto* v : {&piece_eff, &inst_eff})
+    for (const Effective& e : *v)
+      if (e.usable) margin = std::max(margin, e.margin), kappa = std::max(kappa, e.kappa);
+  if (o.thin) margin = 0;
+  const uint32_t res = o.resolution ? o.resolution : choose_resolution(bp.unique_triangles + bp.instanced_triangles);
+  // Grid: the point's bounds grown by twice the margin (the effective geometry may lie up to `margin`
+  // outside the bounds computed from the double transforms), cubic cells, origin and cell as floats.
+  Vec3d lo = bp.bounds.lo, hi = bp.bounds.hi;
+  if (bp.bounds.empty()) lo = hi = Vec3d{0, 0, 0};
+  double ext = 0, mag = 0;
+  for (int k = 0; k < 3; ++k) mag = std::max({mag, std::fabs(lo[k]), std::fabs(hi[k])});
+  const double grow = 2 * margin + 4 * kU * mag + std::numeric_limits<float>::min();
+  for (int k = 0; k < 3; ++k) {
+    out.grid.origin[k] = round_down(lo[k] - grow);
+    ext = std::max(ext, (hi[k] + grow) - double(out.grid.origin[k]));
+  }
+  float cell = round_up(ext / res);
+  if (!(cell > 0)) cell = std::numeric_limits<float>::min();
+  for (int k = 0; k < 3; ++k)  // the float cell must still cover the grown bounds
+    while (double(out.grid.origin[k]) + double(cell) * res < hi[k] + grow) cell = std::nextafter(cell, 2 * cell);
+  out.grid.cell = cell;
+  out.grid.resolution = res;
+  out.grid.margin = round_up(margin);
+  out.grid.ray_rel = o.thin ? 0.0f : round_up(kSafety * kU * kappa);
+  Grid g({out.grid.origin[0], out.grid.origin[1], out.grid.origin[2]}, cell, res);
+
+  for (size_t i = 0; i < bp.pieces.size(); ++i) {
+    const Effective& e = piece_eff[i];
+    if (!e.usable) continue;
+    const Mesh& mesh = plan.pieces[bp.pieces[i]].mesh;
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+      const Vec3d a = e.apply(to_d(mesh.positions[mesh.indices[t]])), b = e.apply(to_d(mesh.positions[mesh.indices[t + 1]])),
+                  c = e.apply(to_d(mesh.positions[mesh.indices[t + 2]]));
+      if (o.thin)
+        voxelize_triangle_thin(g, a, b, c);
+      else
+        voxelize_triangle(g, a, b, c, e.margin);
+    }
+  }
+  for (size_t i = 0; i < bp.instances.size(); ++i) {
+    const Effective& e = inst_eff[i];
+    if (!e.usable) continue;
+    const MeshProxies::Proxy& p = meshes[scene.instances[bp.instances[i]].mesh];
+    if (p.levels.empty()) continue;  // no triangles
+    const Vec3d plo = p.origin, phi = p.origin + Vec3d{1, 1, 1} * (p.cell * kLocalRes);
+    Vec3d wlo, whi;
+    world_box(e, plo, phi, e.margin, wlo, whi);
+    double cells = 0;
+    for (int k = 0; k < 3; ++k) cells = std::max(cells, (whi[k] - wlo[k]) / cell);
+    size_t lv = 0;  // the level whose cells are about one grid cell
+    while (lv + 1 < p.levels.size() && double(p.levels[lv].r) < cells) ++lv;
+    const MeshProxies::Level& L = p.levels[lv];
+    const double lc = p.cell * (kLocalRes / L.r);
+    for (uint32_t z = 0; z < L.r; ++z)
+      for (uint32_t y = 0; y < L.r; ++y)
+        for (uint32_t x = 0; x < L.r; ++x) {
+          if (!L.occupied[x + L.r * (y + size_t(L.r) * z)]) continue;
+          const Vec3d clo = p.origin + Vec3d{x * lc, y * lc, z * lc}, chi = clo + Vec3d{lc, lc, lc};
+          world_box(e, clo, chi, e.margin, wlo, whi);
+          g.mark_box(wlo, whi);
+        }
+  }
+  out.set_cells = g.count();
+  out.dag = build_dag(g);
+  out.grid.root = out.dag.root;
+  return out;
+}
+
+}  // namespace rtp::voxel

@@ -1,0 +1,115 @@
+#pragma once
+// Occlusion-culling proxies (Molenaar 2019 §3.2–3.3, §4.2): conservative voxel grids of batching
+// points, sparse voxel DAGs in one shared pool, and the interval-clipped ray/DAG test.
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/math.h"
+#include "formats/dag.h"
+
+namespace rtp::voxel {
+
+// A cubic grid of R^3 cells (R a power of two >= 4) stored densely as 4x4x4 blocks of one uint64 each
+// (bit x + 4y + 16z), blocks indexed bx + nb * (by + nb * bz) with nb = R / 4.
+struct Grid {
+  Vec3d origin;
+  double cell = 1;
+  uint32_t resolution = 4;
+  std::vector<uint64_t> blocks;
+
+  Grid() = default;
+  Grid(const Vec3d& origin_, double cell_, uint32_t resolution_);
+  uint32_t blocks_per_axis() const { return resolution / 4; }
+  bool get(uint32_t x, uint32_t y, uint32_t z) const {
+    const uint32_t nb = blocks_per_axis();
+    return (blocks[(x >> 2) + nb * ((y >> 2) + size_t(nb) * (z >> 2))] >> ((x & 3) + 4 * (y & 3) + 16 * (z & 3))) & 1u;
+  }
+  void set(uint32_t x, uint32_t y, uint32_t z) {
+    const uint32_t nb = blocks_per_axis();
+    blocks[(x >> 2) + nb * ((y >> 2) + size_t(nb) * (z >> 2))] |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
+  }
+  uint64_t count() const;
+  // Every cell overlapping the closed box [lo, hi] (clamped to the grid).
+  void mark_box(const Vec3d& lo, const Vec3d& hi);
+};
+
+// Conservative (26-separating) voxelization, Schwarz & Seidel 2010 §3.1 (Molenaar 2019 §4.2): sets
+// every cell whose box, grown by `margin` on every side, touches the triangle (plane test and the
+// three projected edge tests with critical points), in double precision. A triangle of zero area
+// sets every cell its grown bounding box overlaps.
+void voxelize_triangle(Grid& grid, const Vec3d& a, const Vec3d& b, const Vec3d& c, double margin);
+// Thin (6-separating) voxelization, only a test foil: along the dominant normal axis, the cell
+// holding the plane at each covered column centre. Leaves gaps that rays can pass through.
+void voxelize_triangle_thin(Grid& grid, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+
+// A sparse voxel DAG of one grid before it joins the pool: nodes deduplicated by (level, words).
+struct LocalDag {
+  std::vector<uint32_t> words;          // formats/dag.h node layout, children before parents
+  std::vector<uint32_t> node_offsets;   // start of each node in `words`, creation order
+  std::vector<uint8_t> node_levels;     // its level (>= 1)
+  std::vector<uint64_t> leaves;         // unique leaf masks
+  uint32_t root = fmt::kDagEmpty;       // at level log2(R / 4): a leaf index (R = 4), a word offset, or kDagEmpty/kDagFull
+  uint64_t bytes() const { return words.size() * 4 + leaves.size() * 8; }
+};
+
+// SVO -> DAG bottom-up (Kämpe et al. 2013; Molenaar 2019 §3.3 Algorithm 1): identical subtrees once.
+LocalDag build_dag(const Grid& grid);
+
+// The package's DAG pool: one hash table shared by every batching point, so identical subtrees
+// anywhere in the package are stored once. Deterministic: the same adds in the same order give the
+// same bytes.
+class DagPool {
+ public:
+  // Adds a grid's DAG; returns its root reference in the pool.
+  uint32_t add(const LocalDag& dag);
+  const std::vector<uint32_t>& words() const { return words_; }
+  const std::vector<uint64_t>& leaves() const { return leaves_; }
+  uint64_t bytes() const { return words_.size() * 4 + leaves_.size() * 8; }
+
+ private:
+  std::vector<uint32_t> words_;
+  std::vector<uint64_t> leaves_;
+  std::unordered_map<std::u32string, uint32_t> node_index_;
+  std::unordered_map<uint64_t, uint32_t> leaf_index_;
+};
+
+// A read-only view of a pool (from a package chunk or a DagPool).
+struct DagView {
+  const uint32_t* words = nullptr;
+  uint64_t word_count = 0;
+  const uint64_t* leaves = nullptr;
+  uint64_t leaf_count = 0;
+};
+
+// Structural check of one grid's DAG: resolution, cell, every reference in range, node sizes, no
+// empty node or leaf. Returns "" when sound, else what is wrong. Cost: O(nodes reachable).
+std::string check_dag(const fmt::DagGrid& grid, const DagView& pool);
+// The same for every grid of a pool at once (nodes shared by several grids are checked once):
+// "" or "batching point N: <problem>".
+std::string check_dags(const fmt::DagGrid* grids, uint64_t count, const DagView& pool);
+// Bytes of the unique nodes and leaves reachable from the grid's root (the size of this DAG built
+// alone, before sharing with other batching points).
+uint64_t dag_reachable_bytes(const fmt::DagGrid& grid, const DagView& pool);
+// Decodes a grid's DAG into a dense grid (tests, inspection).
+Grid decode_dag(const fmt::DagGrid& grid, const DagView& pool);
+
+// Result of the ray/DAG test: culled, or a lower bound t_entry >= tnear on the entry distance of every
+// set cell the ray meets within [tnear, tfar] (so every hit of the grid's geometry has t >= t_entry).
+// The reference returns the exact smallest entry distance.
+struct DagHit {
+  bool culled = true;
+  double t_entry = 0;
+};
+// The cell growth the ray test uses for this ray (SPEC §4.5).
+double dag_ray_growth(const fmt::DagGrid& grid, const double org[3]);
+// Front-to-back DFS over the DAG with the eight child boxes tested together, clipped to
+// [tnear, tfar] (fixed stack, no allocation). Requires check_dag() to have passed.
+DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3],
+                       double tnear, double tfar);
+// Scalar reference: every set cell of a dense grid tested on its own (slow; tests only).
+DagHit grid_first_entry_reference(const Grid& dense, double growth, const double org[3], const double dir[3],
+                                  double tnear, double tfar);
+
+}  // namespace rtp::voxel
