@@ -10,7 +10,8 @@
 namespace rtp::RTP_ISA_NS {
 
 // Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3: translate to the ray origin,
-// shear so the ray is the +z axis, 2D edge functions U, V, W (double fallback when one is exactly 0),
+// shear so the ray is the +z axis, 2D edge functions U, V, W (the whole test in double when one is
+// within its float rounding bound of 0: triangle_double),
 // hit when all have one sign (two-sided). The hit/miss decision is Woop's; t is not his T / det, which
 // loses up to ~1e-3 relative on needle triangles hit at grazing angles, but the plane equation
 // t = dot(N, p - org) / dot(N, dir) (as Embree's robust Plücker test computes t), with N the cross
@@ -36,7 +37,22 @@ inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail:
     float u = cx * by - cy * bx;
     float v = ax * cy - ay * cx;
     float w = bx * ay - by * ax;
-    if (u == 0.0f || v == 0.0f || w == 0.0f) edge_functions_double(ax, ay, bx, by, cx, cy, &u, &v, &w);
+    const float eu = kEdgeBound * (std::fabs(cx * by) + std::fabs(cy * bx));
+    const float ev = kEdgeBound * (std::fabs(ax * cy) + std::fabs(ay * cx));
+    const float ew = kEdgeBound * (std::fabs(bx * ay) + std::fabs(by * ax));
+    if (std::fabs(u) <= eu || std::fabs(v) <= ev || std::fabs(w) <= ew) [[unlikely]] {
+      const float q0[3] = {blk.v0[kx][i], blk.v0[ky][i], blk.v0[kz][i]};
+      const float q1[3] = {blk.v1[kx][i], blk.v1[ky][i], blk.v1[kz][i]};
+      const float q2[3] = {blk.v2[kx][i], blk.v2[ky][i], blk.v2[kz][i]};
+      float t, bu, bv;
+      if (!triangle_double(ax, ay, bx, by, cx, cy, q0, q1, q2, r.org_k, r.dir_k, r.tnear, tfar, &t, &bu, &bv)) continue;
+      if constexpr (kAny) return 1u << i;
+      mask |= 1u << i;
+      out->t[i] = t;
+      out->u[i] = bu;
+      out->v[i] = bv;
+      continue;
+    }
     const bool inside = (u >= 0.0f && v >= 0.0f && w >= 0.0f) || (u <= 0.0f && v <= 0.0f && w <= 0.0f);
     if (!inside) continue;
     const float det = (u + v) + w;
@@ -66,6 +82,19 @@ inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail:
                 nz = ea[0] * eb[1] - ea[1] * eb[0];
     const float den = (nx * r.dir_k[0] + ny * r.dir_k[1]) + nz * r.dir_k[2];
     const float num = (nx * rel[0] + ny * rel[1]) + nz * rel[2];
+    const float dsum = (std::fabs(ea[1] * eb[2]) + std::fabs(ea[2] * eb[1])) * std::fabs(r.dir_k[0]) +
+                       (std::fabs(ea[2] * eb[0]) + std::fabs(ea[0] * eb[2])) * std::fabs(r.dir_k[1]) +
+                       (std::fabs(ea[0] * eb[1]) + std::fabs(ea[1] * eb[0])) * std::fabs(r.dir_k[2]);
+    if (std::fabs(den) <= kDenBound * dsum) [[unlikely]] {  // nearly parallel: triangle_double decides
+      float t, bu, bv;
+      if (!triangle_double(ax, ay, bx, by, cx, cy, p0, p1, p2, r.org_k, r.dir_k, r.tnear, tfar, &t, &bu, &bv)) continue;
+      if constexpr (kAny) return 1u << i;
+      mask |= 1u << i;
+      out->t[i] = t;
+      out->u[i] = bu;
+      out->v[i] = bv;
+      continue;
+    }
     if (!(den != 0.0f)) continue;  // the SIMD path divides and rejects the non-finite t
     const float t = num / den;
     if (!(t >= r.tnear && t <= tfar && std::fabs(t) <= FLT_MAX)) continue;

@@ -10,7 +10,8 @@
 namespace rtp::RTP_ISA_NS {
 
 // Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3: shear by the dominant axis,
-// edge functions with the double fallback (scalar, only for the lanes where one is exactly 0),
+// edge functions, the whole test in double for the lanes where one is within its float rounding bound
+// of 0 (triangle_double, scalar),
 // two-sided sign test; t from the plane equation with the two shorter edges (see triangle_scalar.h),
 // in [tnear, tfar] and finite;
 // u = V / det, v = W / det.
@@ -37,19 +38,14 @@ inline uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::T
     V u = cx * by - cy * bx;
     V v = ax * cy - ay * cx;
     V w = bx * ay - by * ax;
-    const uint32_t exact_zero = ((u == zero) | (v == zero) | (w == zero)).bits();
-    if (exact_zero) [[unlikely]] {
-      alignas(64) float s[6][V::kLanes], e[3][V::kLanes];
-      ax.store(s[0]), ay.store(s[1]), bx.store(s[2]), by.store(s[3]), cx.store(s[4]), cy.store(s[5]);
-      u.store(e[0]), v.store(e[1]), w.store(e[2]);
-      for (uint32_t m = exact_zero; m; m &= m - 1) {
-        const int i = lowest_bit(m);
-        edge_functions_double(s[0][i], s[1][i], s[2][i], s[3][i], s[4][i], s[5][i], &e[0][i], &e[1][i], &e[2][i]);
-      }
-      u = V::load(e[0]), v = V::load(e[1]), w = V::load(e[2]);
-    }
+    const V kb = V::splat(kEdgeBound);
+    const V eu = kb * (vabs(cx * by) + vabs(cy * bx));
+    const V ev = kb * (vabs(ax * cy) + vabs(ay * cx));
+    const V ew = kb * (vabs(bx * ay) + vabs(by * ax));
+    // Lanes whose sign is not trusted: the whole test in double (triangle_double), as the scalar kernel.
+    const uint32_t slow = ((vabs(u) <= eu) | (vabs(v) <= ev) | (vabs(w) <= ew)).bits();
     const auto inside = ((u >= zero) & (v >= zero) & (w >= zero)) | ((u <= zero) & (v <= zero) & (w <= zero));
-    if (!inside.bits()) continue;
+    if (!(inside.bits() & ~slow) && !slow) continue;
     const V det = (u + v) + w;
     const V d01x = p1x - p0x, d01y = p1y - p0y, d01z = p1z - p0z;
     const V d12x = p2x - p1x, d12y = p2y - p1y, d12z = p2z - p1z;
@@ -71,16 +67,45 @@ inline uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::T
     const V nx = eay * ebz - eaz * eby, ny = eaz * ebx - eax * ebz, nz = eax * eby - eay * ebx;
     const V den = (nx * V::splat(r.dir_k[0]) + ny * V::splat(r.dir_k[1])) + nz * V::splat(r.dir_k[2]);
     const V num = (nx * rx + ny * ry) + nz * rz;
+    // A ray nearly parallel to the plane: den within its rounding bound of 0 gives a garbage t (and
+    // the sheared sliver may contain the ray only through rounding): those lanes go to double too.
+    const V dsum = (vabs(eay * ebz) + vabs(eaz * eby)) * V::splat(std::fabs(r.dir_k[0])) +
+                   (vabs(eaz * ebx) + vabs(eax * ebz)) * V::splat(std::fabs(r.dir_k[1])) +
+                   (vabs(eax * eby) + vabs(eay * ebx)) * V::splat(std::fabs(r.dir_k[2]));
+    const uint32_t grazing = (vabs(den) <= V::splat(kDenBound) * dsum).bits() & (inside & (det != zero)).bits();
+    const uint32_t slow_all = slow | grazing;
+    uint32_t slow_hit = 0;
+    alignas(64) float st[V::kLanes], su[V::kLanes], sv[V::kLanes];
+    if (slow_all) [[unlikely]] {
+      alignas(64) float s6[6][V::kLanes];
+      ax.store(s6[0]), ay.store(s6[1]), bx.store(s6[2]), by.store(s6[3]), cx.store(s6[4]), cy.store(s6[5]);
+      for (uint32_t m = slow_all; m; m &= m - 1) {
+        const int i = lowest_bit(m);
+        const float q0[3] = {blk.v0[kx][off + i], blk.v0[ky][off + i], blk.v0[kz][off + i]};
+        const float q1[3] = {blk.v1[kx][off + i], blk.v1[ky][off + i], blk.v1[kz][off + i]};
+        const float q2[3] = {blk.v2[kx][off + i], blk.v2[ky][off + i], blk.v2[kz][off + i]};
+        if (triangle_double(s6[0][i], s6[1][i], s6[2][i], s6[3][i], s6[4][i], s6[5][i], q0, q1, q2, r.org_k, r.dir_k,
+                            r.tnear, tfar, &st[i], &su[i], &sv[i]))
+          slow_hit |= 1u << i;
+      }
+      if constexpr (kAny)
+        if (slow_hit) return slow_hit << off;
+    }
     const V t = num / den;
     const uint32_t hit = (inside & (det != zero) & (t >= V::splat(r.tnear)) & (t <= V::splat(tfar)) &
                           (vabs(t) <= V::splat(FLT_MAX)))
                              .bits();
-    if (!hit) continue;
-    if constexpr (kAny) return hit << off;
-    mask |= hit << off;
+    const uint32_t fast_hit = hit & ~slow_all;
+    if (!fast_hit && !slow_hit) continue;
+    if constexpr (kAny) return fast_hit << off;
+    mask |= (fast_hit | slow_hit) << off;
     t.store(out->t + off);
     (v / det).store(out->u + off);
     (w / det).store(out->v + off);
+    for (uint32_t m = slow_hit; m; m &= m - 1) {
+      const int i = lowest_bit(m);
+      out->t[off + i] = st[i], out->u[off + i] = su[i], out->v[off + i] = sv[i];
+    }
   }
   return mask;
 }
