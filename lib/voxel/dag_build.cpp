@@ -18,8 +18,7 @@ struct Builder {
   std::unordered_map<std::u32string, uint32_t> node_index;  // (level, words...) -> offset
 
   uint32_t leaf(uint32_t bx, uint32_t by, uint32_t bz) {
-    const uint32_t nb = g.blocks_per_axis();
-    const uint64_t m = g.blocks[bx + nb * (by + size_t(nb) * bz)];
+    const uint64_t m = g.block(bx, by, bz);
     if (m == 0) return kNone;
     if (m == ~uint64_t(0)) return fmt::kDagFull;
     auto [it, fresh] = leaf_index.emplace(m, uint32_t(out.leaves.size()));
@@ -28,6 +27,7 @@ struct Builder {
   }
   // Node at `level` (>= 1) whose block-space corner is (x, y, z) * 2^level.
   uint32_t node(int level, uint32_t x, uint32_t y, uint32_t z) {
+    if (g.region_empty(x << level, y << level, z << level, 1u << level)) return kNone;  // no brick: skip
     uint32_t refs[8], child_mask = 0, full_mask = 0;
     for (uint32_t c = 0; c < 8; ++c) {
       const uint32_t cx = 2 * x + (c & 1), cy = 2 * y + ((c >> 1) & 1), cz = 2 * z + (c >> 2);

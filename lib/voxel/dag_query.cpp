@@ -131,7 +131,7 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
   auto fill = [&](uint32_t bx, uint32_t by, uint32_t bz, uint32_t size, uint64_t mask) {
     for (uint32_t z = bz; z < bz + size; ++z)
       for (uint32_t y = by; y < by + size; ++y)
-        for (uint32_t x = bx; x < bx + size; ++x) out.blocks[x + nb * (y + size_t(nb) * z)] = mask;
+        for (uint32_t x = bx; x < bx + size; ++x) out.set_block(x, y, z, mask);
   };
   if (g.root == fmt::kDagFull) {
     fill(0, 0, 0, nb, ~uint64_t(0));

@@ -17,6 +17,7 @@ namespace {
 constexpr double kU = 1.0 / 16777216.0;  // 2^-24: float unit roundoff
 constexpr double kSafety = 16;
 constexpr uint32_t kLocalRes = 32;
+constexpr uint64_t kInstanceDetail = 256;
 
 float round_up(double v) {
   float f = float(v);
@@ -142,7 +143,13 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     for (const Effective& e : *v)
       if (e.usable) margin = std::max(margin, e.margin), kappa = std::max(kappa, e.kappa);
   if (o.thin) margin = 0;
-  const uint32_t res = o.resolution ? o.resolution : choose_resolution(bp.unique_triangles + bp.instanced_triangles);
+  // An instance adds at most kInstanceDetail triangles' worth of detail: it is voxelized through its
+  // mesh's coarse local occupancy, so more grid cells would only repeat the same boxes (and a point of
+  // 300 trees of 12k triangles each would get 512^3 cells for what 128^3 shows).
+  uint64_t detail = bp.unique_triangles;
+  for (uint32_t i : bp.instances)
+    detail += std::min<uint64_t>(scene.meshes[scene.instances[i].mesh].triangle_count(), kInstanceDetail);
+  const uint32_t res = o.resolution ? o.resolution : choose_resolution(detail);
   // Grid: the point's bounds grown by twice the margin (the effective geometry may lie up to `margin`
   // outside the bounds computed from the double transforms), cubic cells, origin and cell as floats.
   Vec3d lo = bp.bounds.lo, hi = bp.bounds.hi;

@@ -11,28 +11,54 @@
 
 namespace rtp::voxel {
 
-// A cubic grid of R^3 cells (R a power of two >= 4) stored densely as 4x4x4 blocks of one uint64 each
-// (bit x + 4y + 16z), blocks indexed bx + nb * (by + nb * bz) with nb = R / 4.
-struct Grid {
+// A cubic grid of R^3 cells (R a power of two >= 4) in 4x4x4 blocks of one uint64 each (bit
+// x + 4y + 16z), stored sparsely: bricks of 8^3 blocks (32^3 cells) are allocated when first written,
+// so memory and time follow the cells a batching point's geometry touches, not R^3 (a 512^3 grid of a
+// few trees costs a few bricks, not 16 MiB).
+class Grid {
+ public:
   Vec3d origin;
   double cell = 1;
   uint32_t resolution = 4;
-  std::vector<uint64_t> blocks;
 
   Grid() = default;
   Grid(const Vec3d& origin_, double cell_, uint32_t resolution_);
   uint32_t blocks_per_axis() const { return resolution / 4; }
+  uint64_t block(uint32_t bx, uint32_t by, uint32_t bz) const {
+    const uint32_t b = brick_[brick_index(bx, by, bz)];
+    return b ? store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)] : 0;
+  }
+  void set_block(uint32_t bx, uint32_t by, uint32_t bz, uint64_t mask) {
+    if (mask || brick_[brick_index(bx, by, bz)]) block_ref(bx, by, bz) = mask;
+  }
   bool get(uint32_t x, uint32_t y, uint32_t z) const {
-    const uint32_t nb = blocks_per_axis();
-    return (blocks[(x >> 2) + nb * ((y >> 2) + size_t(nb) * (z >> 2))] >> ((x & 3) + 4 * (y & 3) + 16 * (z & 3))) & 1u;
+    return (block(x >> 2, y >> 2, z >> 2) >> ((x & 3) + 4 * (y & 3) + 16 * (z & 3))) & 1u;
   }
   void set(uint32_t x, uint32_t y, uint32_t z) {
-    const uint32_t nb = blocks_per_axis();
-    blocks[(x >> 2) + nb * ((y >> 2) + size_t(nb) * (z >> 2))] |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
+    block_ref(x >> 2, y >> 2, z >> 2) |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
   }
   uint64_t count() const;
+  // True when no brick overlapping the block region [b, b + size)^3 is allocated (then it is empty).
+  bool region_empty(uint32_t bx, uint32_t by, uint32_t bz, uint32_t size) const;
+  // Every block, x fastest ((R/4)^3 entries; tests and small grids only).
+  std::vector<uint64_t> dense() const;
+  uint64_t allocated_bytes() const { return store_.size() * 8; }
   // Every cell overlapping the closed box [lo, hi] (clamped to the grid).
   void mark_box(const Vec3d& lo, const Vec3d& hi);
+
+ private:
+  size_t brick_index(uint32_t bx, uint32_t by, uint32_t bz) const {
+    return (bx >> shift_) + bricks_ * ((by >> shift_) + size_t(bricks_) * (bz >> shift_));
+  }
+  size_t local_index(uint32_t bx, uint32_t by, uint32_t bz) const {
+    const uint32_t m = edge_ - 1;
+    return (bx & m) + edge_ * ((by & m) + size_t(edge_) * (bz & m));
+  }
+  uint64_t& block_ref(uint32_t bx, uint32_t by, uint32_t bz);
+  uint32_t edge_ = 1, shift_ = 0, bricks_ = 1;  // blocks per brick edge (min(8, R/4)), log2, bricks per axis
+  size_t brick_blocks_ = 1;
+  std::vector<uint32_t> brick_{0};               // per brick: 0 = absent, else 1 + its slot in store_
+  std::vector<uint64_t> store_;
 };
 
 // Conservative (26-separating) voxelization, Schwarz & Seidel 2010 §3.1 (Molenaar 2019 §4.2): sets

@@ -10,27 +10,62 @@ namespace rtp::voxel {
 
 Grid::Grid(const Vec3d& origin_, double cell_, uint32_t resolution_)
     : origin(origin_), cell(cell_), resolution(resolution_) {
-  const size_t nb = resolution / 4;
-  blocks.assign(nb * nb * nb, 0);
+  const uint32_t nb = resolution / 4;
+  edge_ = std::min<uint32_t>(8, nb);
+  shift_ = uint32_t(std::countr_zero(edge_));
+  bricks_ = nb / edge_;
+  brick_blocks_ = size_t(edge_) * edge_ * edge_;
+  brick_.assign(size_t(bricks_) * bricks_ * bricks_, 0);
+}
+
+uint64_t& Grid::block_ref(uint32_t bx, uint32_t by, uint32_t bz) {
+  uint32_t& b = brick_[brick_index(bx, by, bz)];
+  if (!b) {
+    store_.resize(store_.size() + brick_blocks_, 0);
+    b = uint32_t(store_.size() / brick_blocks_);
+  }
+  return store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)];
 }
 
 uint64_t Grid::count() const {
   uint64_t n = 0;
-  for (uint64_t b : blocks) n += uint64_t(std::popcount(b));
+  for (uint64_t b : store_) n += uint64_t(std::popcount(b));
   return n;
+}
+
+bool Grid::region_empty(uint32_t bx, uint32_t by, uint32_t bz, uint32_t size) const {
+  if (size < edge_) return brick_[brick_index(bx, by, bz)] == 0;
+  const uint32_t n = size >> shift_, x0 = bx >> shift_, y0 = by >> shift_, z0 = bz >> shift_;
+  for (uint32_t z = z0; z < z0 + n; ++z)
+    for (uint32_t y = y0; y < y0 + n; ++y)
+      for (uint32_t x = x0; x < x0 + n; ++x)
+        if (brick_[x + bricks_ * (y + size_t(bricks_) * z)]) return false;
+  return true;
+}
+
+std::vector<uint64_t> Grid::dense() const {
+  const uint32_t nb = blocks_per_axis();
+  std::vector<uint64_t> out(size_t(nb) * nb * nb, 0);
+  for (uint32_t z = 0; z < nb; ++z)
+    for (uint32_t y = 0; y < nb; ++y)
+      for (uint32_t x = 0; x < nb; ++x) out[x + nb * (y + size_t(nb) * z)] = block(x, y, z);
+  return out;
 }
 
 namespace {
 
 // Cell range [first, last] whose cells overlap [lo, hi] on one axis; false when outside the grid.
 bool cell_range(const Grid& g, int axis, double lo, double hi, int& first, int& last) {
-  const double a = std::floor((lo - g.origin[axis]) / g.cell), b = std::floor((hi - g.origin[axis]) / g.cell);
-  // Padded like the range below: a closed box touching the grid's upper face (a == R) or its lower
-  // face (b == -1 after rounding) still reaches the boundary cells; the exact tests decide.
-  if (!(b >= -1) || !(a <= double(g.resolution))) return false;  // also NaN
-  // One extra cell each side: the division rounds; the exact tests below decide.
-  first = int(std::max(a - 1, 0.0));
-  last = int(std::min(b + 1, double(g.resolution) - 1));
+  // The quotients are rounded (relative 2^-53 each): pad by one cell only when one lies within 1e-9
+  // (relative) of a cell plane; the exact tests decide. Most small triangles then test 1-8 cells, not 27.
+  const double qa = (lo - g.origin[axis]) / g.cell, qb = (hi - g.origin[axis]) / g.cell;
+  const double pa = 1e-9 * (std::fabs(qa) + 1), pb = 1e-9 * (std::fabs(qb) + 1);
+  const double a = std::floor(qa - pa), b = std::floor(qb + pb);
+  // A closed box touching the grid's upper face (qa == R) or lower face (qb == 0) still reaches the
+  // boundary cell: the padding makes a == R - 1 or b == 0 there.
+  if (!(b >= 0) || !(a <= double(g.resolution) - 1)) return false;  // also NaN
+  first = int(std::max(a, 0.0));
+  last = int(std::min(b, double(g.resolution) - 1));
   return first <= last;
 }
 
