@@ -41,6 +41,28 @@ inline void patch_chunk(const std::string& path, size_t index, const std::functi
   std::ofstream(path, std::ios::binary | std::ios::trunc).write(f.data(), std::streamsize(f.size()));
 }
 
+// Edits the header (at offset 0), then re-seals its CRC.
+inline void patch_header(const std::string& path, const std::function<void(fmt::Header&)>& edit) {
+  std::string f = slurp(path);
+  fmt::Header h;
+  std::memcpy(&h, f.data(), sizeof h);
+  edit(h);
+  h.header_crc32c = crc32c(&h, offsetof(fmt::Header, header_crc32c));
+  std::memcpy(f.data(), &h, sizeof h);
+  std::ofstream(path, std::ios::binary | std::ios::trunc).write(f.data(), std::streamsize(f.size()));
+}
+
+// The section-table entry of a section of a chunk's bytes, or null (to edit its count).
+inline fmt::SectionEntry* section_entry(uint8_t* chunk, fmt::SectionType type) {
+  fmt::ChunkHeader ch;
+  std::memcpy(&ch, chunk, sizeof ch);
+  for (uint32_t s = 0; s < ch.section_count; ++s) {
+    auto* se = reinterpret_cast<fmt::SectionEntry*>(chunk + sizeof ch + s * sizeof(fmt::SectionEntry));
+    if (se->type == uint32_t(type)) return se;
+  }
+  return nullptr;
+}
+
 // A section of a chunk's bytes (formats/chunk.h), or null.
 template <class T>
 inline T* section(uint8_t* chunk, fmt::SectionType type, uint64_t* count = nullptr) {

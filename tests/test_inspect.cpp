@@ -1,9 +1,11 @@
 // rtpack-inspect: --verify passes on packages written from real samples for every BVH width; a chunk
 // corrupted with every checksum re-sealed (so only the invariant checks can see it) fails with exit 3
-// naming that chunk; the JSON counts match the Scene; the reader-side BVH statistics equal the builder's.
+// naming that chunk; the JSON counts match the Scene; the reader-side BVH statistics equal the builder's;
+// the culling-DAG block matches the pool chunk read directly, and DAG corruptions name the batching point.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <bit>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -15,10 +17,12 @@
 #include "formats/top_level.h"
 #include "gltf_builder.h"
 #include "package_patch.h"
+#include "package/chunk_io.h"
 #include "package/inspect.h"
 #include "package/package.h"
 #include "package/write_package.h"
 #include "scene/import.h"
+#include "voxel/voxel.h"
 
 namespace rtp::test {
 namespace {
@@ -41,17 +45,19 @@ uint64_t target(const char* rel) { return rel == kLantern ? 1000 : 200000; }
 struct Written {
   Plan plan;
   std::string path;
+  ConvertReport report;
 };
 
-Written write(const char* rel, int w, const fs::path& path, int zstd_level = 9) {
+Written write(const char* rel, int w, const fs::path& path, int zstd_level = 9, bool dag = true) {
   ClusterOptions co;
   co.chunk_target = target(rel);
-  Written out{plan_batching_points(scene(rel), co), path.string()};
+  Written out{plan_batching_points(scene(rel), co), path.string(), {}};
   ConvertOptions cv;
   cv.width = w;
   cv.leaf_width = w == 16 ? 8 : w;
   cv.zstd_level = zstd_level;
-  write_package(scene(rel), out.plan, out.path, cv);
+  cv.dag = dag;
+  out.report = write_package(scene(rel), out.plan, out.path, cv);
   return out;
 }
 
@@ -112,7 +118,8 @@ TEST_F(Inspect, VerifyPassesAndJsonCountsMatchTheSceneForEveryWidth) {
       EXPECT_EQ(bp["instanced_triangles"], instanced);
       EXPECT_EQ(unique + instanced, s.instanced_triangles());  // every placed triangle in one point
       EXPECT_EQ(j["mesh_segments"]["count"], p.plan.segments.size());
-      EXPECT_EQ(j["chunks"].size(), p.plan.points.size() + p.plan.segments.size() + 6);
+      EXPECT_EQ(j["chunks"].size(), p.plan.points.size() + p.plan.segments.size() + 7);  // 7 resident (2.0: DAG pool)
+      EXPECT_EQ(j["dag"]["grids"], p.plan.points.size());
       EXPECT_EQ(j["file_bytes"], fs::file_size(p.path));
       EXPECT_EQ(j["bvh"]["batching-point pieces"]["bvhs"], p.plan.pieces.size());
       EXPECT_EQ(j["bvh"]["instance BVHs"]["bvhs"], p.plan.points.size());
@@ -125,7 +132,8 @@ TEST_F(Inspect, TextReportNamesEverySection) {
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* s : {"triangles     15,366 unique, 9,219,600 instanced", "chunk sizes", "mesh segment (on demand)",
                         "batching points ", "triangles (unique + instanced) per point", "mesh segments ", "segment meshes:",
-                        "instance BVHs:", "c_box", "verify: OK", "perspective"})
+                        "instance BVHs:", "c_box", "verify: OK", "perspective", "DAG pool (resident)",
+                        "culling DAGs    pool ", "  resolutions   ", "  sharing       ", "  set cells     "})
     EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
 }
 
@@ -261,6 +269,199 @@ TEST_F(Inspect, UnreadableAndMalformedFiles) {
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("bad magic"), std::string::npos) << r.err;
   EXPECT_EQ(inspect("", dir).code, 1);
+}
+
+// The culling DAGs as stored, read straight through PackageReader / ChunkView (not the inspector).
+struct StoredDags {
+  std::vector<uint32_t> words;
+  std::vector<uint64_t> leaves;
+  std::vector<fmt::DagGrid> grids;
+  bool pool = false, grids_section = false;
+  voxel::DagView view() const { return {words.data(), words.size(), leaves.data(), leaves.size()}; }
+};
+
+StoredDags stored_dags(const std::string& path) {
+  PackageReader r(path);
+  StoredDags d;
+  const int64_t pi = r.find(fmt::ChunkKind::kDagPool, 0);
+  if (pi >= 0) {
+    const AlignedBytes b = r.read(size_t(pi));
+    const ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), "pool");
+    d.pool = true;
+    d.words = v.copy<uint32_t>(fmt::SectionType::kDagNodes);
+    d.leaves = v.copy<uint64_t>(fmt::SectionType::kDagLeaves);
+  }
+  const int64_t di = r.find(fmt::ChunkKind::kBatchingPoints, 0);
+  EXPECT_GE(di, 0);
+  const AlignedBytes b = r.read(size_t(di));
+  const ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), "descriptors");
+  d.grids_section = v.has(fmt::SectionType::kPointGrids);
+  d.grids = v.copy<fmt::DagGrid>(fmt::SectionType::kPointGrids, false);
+  return d;
+}
+
+TEST_F(Inspect, DagBlockMatchesThePoolChunkAndTheConverter) {
+  for (const char* rel : {kLantern, kForest}) {
+    SCOPED_TRACE(rel);
+    const Written p = write(rel, 8, dir / "d.rtp");
+    const StoredDags d = stored_dags(p.path);
+    ASSERT_TRUE(d.pool && d.grids_section);
+    ASSERT_EQ(d.grids.size(), p.plan.points.size());
+    ASSERT_FALSE(d.words.empty());
+    const uint64_t raw = d.words.size() * 4 + d.leaves.size() * 8;  // the pool's raw section bytes
+    EXPECT_EQ(raw, p.report.dag_pool_bytes);
+    // Nodes: the writer packs them back to back (formats/dag.h layout), every one reachable.
+    uint64_t nodes = 0, off = 0;
+    while (off < d.words.size()) {
+      ++nodes;
+      off += 1 + uint64_t(std::popcount(fmt::dag_child_mask(d.words[off]) & ~fmt::dag_full_mask(d.words[off])));
+    }
+    EXPECT_EQ(off, d.words.size());
+    std::map<uint32_t, uint64_t> resolutions;
+    uint64_t set_cells = 0, separate = 0;
+    for (const fmt::DagGrid& g : d.grids) {
+      ++resolutions[g.resolution];
+      ASSERT_EQ(voxel::check_dag(g, d.view()), "");
+      set_cells += voxel::decode_dag(g, d.view()).count();  // O(R^3): fine for a test
+      separate += voxel::dag_reachable_bytes(g, d.view());
+    }
+    EXPECT_EQ(resolutions, p.report.dag_resolutions);
+    EXPECT_EQ(set_cells, p.report.dag_set_cells);
+
+    ToolRun r = inspect("--verify --json " + p.path, dir);
+    ASSERT_EQ(r.code, 0) << r.out << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["dag_pool_bytes"], raw);
+    const auto& dag = j["dag"];
+    EXPECT_TRUE(dag["present"].get<bool>());
+    EXPECT_EQ(dag["pool_bytes"], raw);
+    EXPECT_EQ(dag["nodes"], nodes);
+    EXPECT_EQ(dag["node_words"], d.words.size());
+    EXPECT_EQ(dag["leaves"], d.leaves.size());
+    EXPECT_EQ(dag["unreachable_bytes"], 0u);
+    EXPECT_EQ(dag["grids"], d.grids.size());
+    EXPECT_EQ(dag["set_cells"], set_cells);
+    EXPECT_EQ(dag["separate_bytes"], separate);
+    EXPECT_EQ(separate, p.report.dag_separate_bytes);  // = each point's DAG as the converter built it alone
+    EXPECT_GE(separate, raw);  // the pool is the union of every point's DAG
+    EXPECT_NEAR(dag["sharing"].get<double>(), double(separate) / double(raw), 1e-12);
+    EXPECT_NEAR(dag["bytes_per_point"].get<double>(), double(raw) / double(d.grids.size()), 1e-9);
+    EXPECT_EQ(dag["malformed_grids"], 0u);
+    std::map<uint32_t, uint64_t> listed;  // {"128": points, ...} as in rtpack-convert --json
+    for (const auto& [r, n] : dag["resolutions"].items()) listed[uint32_t(std::stoul(r))] = n.get<uint64_t>();
+    EXPECT_EQ(listed, resolutions);
+
+    r = inspect(p.path, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("culling DAGs    pool "), std::string::npos) << r.out;
+    const auto finest = resolutions.rbegin();
+    const std::string res = std::to_string(finest->second) + " at " + std::to_string(finest->first) + "^3";
+    EXPECT_NE(r.out.find("  resolutions   " + res), std::string::npos) << res << "\n" << r.out;
+  }
+}
+
+TEST_F(Inspect, NoDagPackageSaysSoInOneLine) {
+  const Written p = write(kForest, 8, dir / "n.rtp", 9, /*dag=*/false);
+  const StoredDags d = stored_dags(p.path);
+  EXPECT_FALSE(d.pool || d.grids_section);
+  ToolRun r = inspect("--verify --json --chunks " + p.path, dir);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["dag_pool_bytes"], 0u);
+  EXPECT_FALSE(j["dag"]["present"].get<bool>());
+  EXPECT_EQ(j["dag"]["grids"], 0u);
+  EXPECT_EQ(j["chunks"].size(), p.plan.points.size() + p.plan.segments.size() + 6);
+  r = inspect("--verify " + p.path, dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\nculling DAGs    none (converted with --no-dag)\n"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("resolutions"), std::string::npos) << r.out;
+}
+
+// True when some line of `out` holds `label`, then `who`, then `what`.
+bool names(const std::string& out, const std::string& label, const std::string& who, const std::string& what) {
+  for (size_t at = out.find(label); at != std::string::npos; at = out.find(label, at + 1)) {
+    const std::string line = out.substr(at, out.find('\n', at) - at);
+    const size_t w = line.find(who);
+    if (w != std::string::npos && line.find(what, w) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// DAG corruptions, each re-sealed: only --verify catches them, naming the batching point.
+TEST_F(Inspect, DagCorruptionIsNamedByBatchingPointWithExitCode3) {
+  struct Case {
+    const char* name;
+    fmt::ChunkKind kind;  // the chunk edited and named (0: the header)
+    std::function<std::string(uint8_t*, const StoredDags&)> edit;  // returns "who" (the batching point)
+    const char* expect;
+  };
+  // The first batching point whose root is a node with a child reference.
+  auto node_point = [](const StoredDags& d) {
+    for (size_t p = 0; p < d.grids.size(); ++p) {
+      const uint32_t root = d.grids[p].root;
+      if (d.grids[p].resolution > 4 && root < d.words.size() &&
+          (fmt::dag_child_mask(d.words[root]) & ~fmt::dag_full_mask(d.words[root])) != 0)
+        return p;
+    }
+    ADD_FAILURE() << "no grid with a node root";
+    return size_t(0);
+  };
+  const std::vector<Case> cases = {
+      {"pool word out of range", fmt::ChunkKind::kDagPool,
+       [&](uint8_t* chunk, const StoredDags& d) {
+         const size_t p = node_point(d);
+         section<uint32_t>(chunk, fmt::SectionType::kDagNodes)[d.grids[p].root + 1] = 0x7FFFFFF0u;
+         return "batching point " + std::to_string(p) + "'s DAG";
+       },
+       "out of range"},
+      {"grid resolution 3", fmt::ChunkKind::kBatchingPoints,
+       [&](uint8_t* chunk, const StoredDags& d) {
+         const size_t p = d.grids.size() / 2;
+         section<fmt::DagGrid>(chunk, fmt::SectionType::kPointGrids)[p].resolution = 3;
+         return "batching point " + std::to_string(p) + ": grid";
+       },
+       "resolution 3 is not a power of two"},
+      {"leaf emptied", fmt::ChunkKind::kDagPool,
+       [&](uint8_t* chunk, const StoredDags&) {
+         section<uint64_t>(chunk, fmt::SectionType::kDagLeaves)[0] = 0;
+         return std::string("batching point ");
+       },
+       "is empty or full"},
+      {"one grid too few", fmt::ChunkKind::kBatchingPoints,
+       [&](uint8_t* chunk, const StoredDags&) {
+         --section_entry(chunk, fmt::SectionType::kPointGrids)->count;
+         return std::string("section (22)");
+       },
+       "grids for"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const Written p = write(kForest, 8, dir / "c.rtp", 0);  // zstd level 0: stored uncompressed
+    const StoredDags d = stored_dags(p.path);
+    const auto [index, label] = chunk_of(p.path, c.kind, 0);
+    std::string who;
+    patch_chunk(p.path, index, [&](uint8_t* bytes, size_t) { who = c.edit(bytes, d); });
+    const ToolRun r = inspect("--verify " + p.path, dir);
+    EXPECT_EQ(r.code, 3) << r.out;
+    EXPECT_NE(r.out.find("verify: FAILED"), std::string::npos) << r.out;
+    EXPECT_TRUE(names(r.out, label, who, c.expect)) << "expected '" << label << ": " << who << "... " << c.expect << "' in\n" << r.out;
+    EXPECT_EQ(inspect(p.path, dir).code, 0);  // the statistics still print
+    EXPECT_EQ(inspect("--json " + p.path, dir).code, 0);
+  }
+}
+
+TEST_F(Inspect, DagHeaderFlagMustMatchThePool) {
+  const Written p = write(kLantern, 8, dir / "f.rtp", 0);
+  patch_header(p.path, [](fmt::Header& h) { h.flags &= ~fmt::kFlagDag; });
+  ToolRun r = inspect("--verify " + p.path, dir);
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.out.find("header: the package holds culling DAGs, but flag kFlagDag (4) is not set"), std::string::npos) << r.out;
+
+  const Written q = write(kLantern, 8, dir / "g.rtp", 0, /*dag=*/false);
+  patch_header(q.path, [](fmt::Header& h) { h.flags |= fmt::kFlagDag; });
+  r = inspect("--verify " + q.path, dir);
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.out.find("header: flag kFlagDag (4) is set, but the package has no DAG pool"), std::string::npos) << r.out;
 }
 
 // The reader-side statistics reproduce the builder's (lib/bvh BvhStats) from the stored nodes alone.

@@ -1,10 +1,14 @@
 // rtpack-inspect: what is in a .rtp package (sizes per chunk kind, batching points, mesh segments,
-// per-chunk BVH statistics, metadata) and, with --verify, whether every invariant of the format holds.
+// culling DAGs, per-chunk BVH statistics, metadata) and, with --verify, whether every invariant of the
+// format holds.
 // Exit: 0 fine, 3 a chunk is corrupt or an invariant fails (or the header/TOC is malformed), 2 unreadable.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/error.h"
 #include "core/progress.h"
@@ -55,6 +59,38 @@ void histogram(const char* title, const json& h, bool bytes) {
     std::printf("    [%10s, %10s)  %8s  %s\n", lo.c_str(), hi.c_str(), group(n).c_str(),
                 std::string(size_t((n * 40 + most - 1) / most), '#').c_str());
   }
+}
+
+// The culling-DAG block: pool size, resolutions, sharing, set cells (or one line without DAGs).
+void print_dag(const json& d) {
+  if (!d.value("present", false)) {
+    std::printf("\nculling DAGs    none (converted with --no-dag)\n");
+    return;
+  }
+  const uint64_t pool = u64(d["pool_bytes"]), points = u64(d["grids"]);
+  std::printf("\nculling DAGs    pool %s (%s bytes): %s nodes in %s words, %s leaves; %s per batching point\n", human(double(pool)).c_str(),
+              group(pool).c_str(), group(u64(d["nodes"])).c_str(), group(u64(d["node_words"])).c_str(),
+              group(u64(d["leaves"])).c_str(), human(points ? double(pool) / double(points) : 0.0).c_str());
+  std::vector<std::pair<uint64_t, uint64_t>> by_res;  // {"128": points, ...} -> finest first
+  for (const auto& [r, n] : d["resolutions"].items()) by_res.emplace_back(std::stoull(r), u64(n));
+  std::sort(by_res.rbegin(), by_res.rend());
+  std::string res;
+  for (const auto& [r, n] : by_res) res += (res.empty() ? "" : ", ") + group(n) + " at " + std::to_string(r) + "^3";
+  std::printf("  resolutions   %s (%s grid%s, %s in the descriptors chunk)\n", res.empty() ? "-" : res.c_str(), group(points).c_str(),
+              points == 1 ? "" : "s", human(double(u64(d["grid_bytes"]))).c_str());
+  const uint64_t sep = u64(d["separate_bytes"]);
+  std::printf("  sharing       %s built alone per point -> %s shared pool: %sx", human(double(sep)).c_str(), human(double(pool)).c_str(),
+              num(d["sharing"], "%.2f").c_str());
+  if (sep) std::printf(" (%.1f%% saved)", 100.0 * (1.0 - double(pool) / double(sep)));
+  std::printf("\n");
+  const uint64_t cells = u64(d["cells"]), set = u64(d["set_cells"]);
+  std::printf("  set cells     %s of %s (%.2f%%); %s empty, %s full roots\n", group(set).c_str(), group(cells).c_str(),
+              cells ? 100.0 * double(set) / double(cells) : 0.0, group(u64(d["empty_roots"])).c_str(), group(u64(d["full_roots"])).c_str());
+  if (u64(d["malformed_grids"]) || u64(d["unchecked_grids"]))
+    std::printf("  not counted   %s malformed grids, %s without a readable pool\n", group(u64(d["malformed_grids"])).c_str(),
+                group(u64(d["unchecked_grids"])).c_str());
+  if (d["unreachable_bytes"].is_number() && u64(d["unreachable_bytes"]))
+    std::printf("  unreachable   %s of the pool are reached from no grid\n", human(double(u64(d["unreachable_bytes"]))).c_str());
 }
 
 void print_text(const std::string& path, const json& j) {
@@ -125,6 +161,8 @@ void print_text(const std::string& path, const json& j) {
     std::printf("  stored bytes           %s\n", spread(s["stored_bytes"], true).c_str());
     std::printf("  raw bytes              %s\n", spread(s["raw_bytes"], true).c_str());
   }
+
+  print_dag(j["dag"]);
 
   std::printf("\nBVH statistics (Benthin 2008 §4 cost model, reader side; min / mean / max over the BVHs)\n");
   for (const auto& [name, g] : j["bvh"].items()) {

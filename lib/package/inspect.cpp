@@ -19,7 +19,7 @@ using namespace inspect_detail;
 using fmt::ChunkKind;
 using fmt::SectionType;
 
-bool is_resident(uint32_t kind) { return kind >= 1 && kind <= 6; }
+bool is_resident(uint32_t kind) { return kind >= 1 && kind <= 7; }  // 7: the DAG pool (2.0)
 
 struct Ctx {
   Ctx(const PackageReader& reader, const InspectOptions& opt) : r(reader), o(opt), problems(opt.max_listed) {}
@@ -60,11 +60,15 @@ void guarded(Ctx& c, F&& f) {
 
 void read_resident(Ctx& c) {
   Resident& res = c.res;
-  for (uint32_t kind = 1; kind <= 6; ++kind) {
+  for (uint32_t kind = 1; kind <= 7; ++kind) {
     const int64_t idx = c.r.find(ChunkKind(kind), 0);
-    if (idx < 0) {
-      c.problems.add(std::string("missing ") + chunk_kind_name(kind) + " chunk");
+    if (idx < 0) {  // the DAG pool is optional (--no-dag); --verify checks it against the grids
+      if (ChunkKind(kind) != ChunkKind::kDagPool) c.problems.add(std::string("missing ") + chunk_kind_name(kind) + " chunk");
       continue;
+    }
+    if (ChunkKind(kind) == ChunkKind::kDagPool) {
+      res.dag_present = true;
+      res.dag_label = c.label(size_t(idx));
     }
     const size_t i = size_t(idx);
     const std::optional<AlignedBytes> b = load(c, i);
@@ -91,6 +95,14 @@ void read_resident(Ctx& c) {
           res.segment_refs = v.copy<uint32_t>(SectionType::kSegmentRefs);
           res.descs_ok = true;
           res.descs_label = label;
+          res.grids_present = v.has(SectionType::kPointGrids);
+          res.grids = v.copy<fmt::DagGrid>(SectionType::kPointGrids, false);  // a bad element size throws
+          res.grids_ok = res.grids_present;
+          break;
+        case ChunkKind::kDagPool:
+          res.dag_words = v.copy<uint32_t>(SectionType::kDagNodes);
+          res.dag_leaves = v.copy<uint64_t>(SectionType::kDagLeaves);
+          res.dag_ok = true;
           break;
         case ChunkKind::kInstances:
           res.instances = v.copy<fmt::InstanceRecord>(SectionType::kInstances);
@@ -337,7 +349,7 @@ nlohmann::json metadata_json(const Resident& res) {
   const nlohmann::json& m = res.meta;
   nlohmann::json out = nlohmann::json::object();
   for (const char* k : {"format", "tool_version", "source", "options", "bvh_build", "chunk_target", "chunk_by",
-                        "batching_points", "mesh_segments", "pieces"})
+                        "batching_points", "mesh_segments", "pieces", "dag"})
     if (m.contains(k)) out[k] = m[k];
   nlohmann::json cams = nlohmann::json::array();
   if (m.contains("cameras") && m["cameras"].is_array())
@@ -403,6 +415,8 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
                              {"max", {h.bounds_hi[0], h.bounds_hi[1], h.bounds_hi[2]}}}}};
   j["sizes"] = sizes(c, tris);
   j["bytes_per_unique_triangle"] = double(h.file_size) / tris;
+  j["dag"] = dag_report(reader, c.res, c.ver ? &c.problems : nullptr);
+  j["dag_pool_bytes"] = j["dag"]["pool_bytes"];
   j["instances"] = c.res.instances.size();
   j["meshes"] = c.res.meshes.size();
   j["batching_points"] = points_json(c);

@@ -2,7 +2,8 @@
 // rtpack-inspect: a package's sizes, batching points, mesh segments and per-chunk BVH statistics
 // (Benthin 2008 §4 cost model), computed on the reader side from the stored bytes only, and with
 // verify = true every invariant of formats/SPEC.md checked, each failure named by chunk and object.
-// Reader side: includes formats/, lib/package reader headers and lib/core only.
+// Reader side: includes formats/, lib/package reader headers and lib/core only (inspect_dag.cpp also
+// uses lib/voxel's read-only DAG checks).
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -12,6 +13,7 @@
 
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
+#include "formats/dag.h"
 #include "formats/top_level.h"
 #include "package/inspect_attributes.h"
 #include "package/package.h"
@@ -142,7 +144,19 @@ struct Resident {
   std::vector<fmt::MeshInfo> meshes;
   std::vector<Pair> source_prims, source_tris;
   std::string top_label, descs_label, instances_label, meshes_label, source_label, meta_label;
+  // Culling DAGs (2.0, SPEC §4.5): section kPointGrids of the descriptors chunk and the DAG pool chunk
+  // (kind 7). `*_present`: the section / chunk exists (even when unreadable); `*_ok`: it was parsed.
+  bool grids_present = false, grids_ok = false, dag_present = false, dag_ok = false;
+  std::vector<fmt::DagGrid> grids;
+  std::vector<uint32_t> dag_words;
+  std::vector<uint64_t> dag_leaves;
+  std::string dag_label;
 };
+
+// The "dag" block of the report (pool bytes and counts, resolutions, sharing, set cells) from the
+// resident sections alone; with `verify` the DAG invariants are checked too (pool chunk iff grids iff
+// header flag, one grid per batching point, every grid's DAG sound and covering its point's bounds).
+nlohmann::json dag_report(const PackageReader& reader, const Resident& resident, Problems* verify);
 
 // One mesh segment: its entries and, per entry, the prims of its leaves (non-padding lanes).
 struct SegmentData {

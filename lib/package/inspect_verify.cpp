@@ -82,7 +82,7 @@ Verifier::Verifier(const PackageReader& reader, const Resident& resident, Proble
 
 void Verifier::check_toc() {
   const fmt::Header& h = r_.header();
-  bool reserved = (h.flags & ~(fmt::kFlagNormals | fmt::kFlagUvs)) != 0;
+  bool reserved = (h.flags & ~(fmt::kFlagNormals | fmt::kFlagUvs | fmt::kFlagDag)) != 0;
   for (uint8_t b : h.reserved) reserved |= b != 0;
   if (reserved) out_.add("header: flags or reserved bytes are not 0");
   const auto& toc = r_.toc();
@@ -91,7 +91,7 @@ void Verifier::check_toc() {
     const fmt::TocEntry& e = toc[i];
     const std::string label = chunk_label(e, i);
     if (!seen.insert({e.kind, e.id}).second) out_.add(label + ": a second chunk of this kind with this id");
-    if (e.kind >= 1 && e.kind <= 6 && e.id != 0) out_.add(label + ": a resident chunk with an id other than 0");
+    if (e.kind >= 1 && e.kind <= 7 && e.id != 0) out_.add(label + ": a resident chunk with an id other than 0");
     if (e.reserved != 0) out_.add(label + ": table-of-contents entry has a non-zero reserved field");
     if (e.kind == uint32_t(ChunkKind::kMeshSegment)) ++segments_;
     if (e.kind == uint32_t(ChunkKind::kBatchingPoint)) {
