@@ -13,6 +13,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_run.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -21,34 +23,9 @@ using nlohmann::json;
 const std::string kTool = RTP_BINARY_DIR "/rtpack-bench";
 const std::string kSamples = RTP_SOURCE_DIR "/samples";
 
-// Shell-quotes a path (appending, not operator+: GCC 12 warns -Wrestrict on "'" + std::string).
-std::string q(const std::string& path) {
-  std::string r = "'";
-  r += path;
-  r += "'";
-  return r;
-}
-
-struct ToolRun {
-  int code = -1;
-  std::string out;
-};
-
-ToolRun run(const std::string& args) {
-  ToolRun r;
-  std::string cmd = q(kTool);
-  cmd += " ";
-  cmd += args;
-  cmd += " 2>/dev/null";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using rtp::test::q;
+using ToolRun = rtp::test::BenchRun;
+inline ToolRun run(const std::string& args) { return rtp::test::run_bench(args); }
 
 class OracleBench : public ::testing::Test {
  protected:

@@ -13,7 +13,8 @@
 // with Embree on some ray (the numbers are printed, but they are not worth anything).
 //
 // --convert instead times the converter (rtpack-convert's pipeline) against an Embree HIGH build of the
-// same prepared scene: tools/bench_convert.cpp.
+// same prepared scene: tools/bench_convert.cpp. --dag SCENE... measures the occlusion-culling DAGs
+// (bytes, voxelization, culling on vs off, convert cost): tools/bench_dag.cpp.
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
@@ -37,6 +38,7 @@
 #include <tbb/task_arena.h>
 
 #include "bench_convert.h"
+#include "bench_dag.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
 #include "oracle/compare.h"
@@ -489,6 +491,8 @@ int main(int argc, char** argv) {
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
     convert_flag->excludes(app.get_option(trace_only));
   convert_flag->excludes(build_stats);
+  bench::DagBenchConfig dag;
+  bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -536,6 +540,14 @@ int main(int argc, char** argv) {
       conv.reps = cfg.reps;
       conv.json = cfg.json;
       return bench::run_convert_bench(conv);
+    }
+    if (app.count("--dag")) {
+      dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);
+      dag.threads = threads == "all" ? 0 : cfg.threads[0];
+      dag.reps = cfg.reps, dag.json = cfg.json, dag.seed = cfg.seed, dag.isa = cfg.isa, dag.order = cfg.orders[0];
+      if (app.count("--rays")) dag.rays = cfg.rays;
+      if (app.count("--kinds")) dag.kinds = cfg.kinds;
+      return bench::run_dag_bench(dag);
     }
     return run(cfg);
   } catch (const Error& e) {
