@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 
 #include "bvh/bvh.h"
 
@@ -72,16 +73,17 @@ Effective effective(const Instance& inst, const Aabb& local_bounds) {
   return e;
 }
 
-// World box of a local box through the effective transform (all 8 corners), grown by `grow`.
+// World box of a local box through the effective transform, grown by `grow`: the exact bounds of an
+// affinely mapped box are Minv(centre) ± |Minv|·half-extent (two products instead of eight corners).
 void world_box(const Effective& e, const Vec3d& lo, const Vec3d& hi, double grow, Vec3d& wlo, Vec3d& whi) {
-  const double inf = std::numeric_limits<double>::infinity();
-  wlo = {inf, inf, inf};
-  whi = {-inf, -inf, -inf};
-  for (int c = 0; c < 8; ++c) {
-    const Vec3d p = e.apply({c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z});
-    for (int k = 0; k < 3; ++k) wlo[k] = std::min(wlo[k], p[k]), whi[k] = std::max(whi[k], p[k]);
+  const Vec3d c = e.apply((lo + hi) * 0.5), h = (hi - lo) * 0.5;
+  for (int r = 0; r < 3; ++r) {
+    const double ext = std::fabs(e.minv[4 * r]) * h.x + std::fabs(e.minv[4 * r + 1]) * h.y + std::fabs(e.minv[4 * r + 2]) * h.z;
+    // The two roundings of the centre and extent (relative 2^-52 of their magnitude) go into the growth.
+    const double slack = 4 * std::numeric_limits<double>::epsilon() * (std::fabs(c[r]) + ext);
+    wlo[r] = c[r] - ext - grow - slack;
+    whi[r] = c[r] + ext + grow + slack;
   }
-  for (int k = 0; k < 3; ++k) wlo[k] -= grow, whi[k] += grow;
 }
 
 }  // namespace
@@ -101,6 +103,7 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
     const Mesh& mesh = scene.meshes[todo[i]];
     Proxy& p = proxies_[todo[i]];
     const Aabb b = mesh.local_bounds();
+    p.bounds = b;
     if (b.empty()) return;
     double ext = 0, mag = 0;
     for (int k = 0; k < 3; ++k) ext = std::max(ext, b.hi[k] - b.lo[k]), mag = std::max({mag, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
@@ -137,7 +140,7 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   }
   for (size_t i = 0; i < bp.instances.size(); ++i) {
     const Instance& in = scene.instances[bp.instances[i]];
-    inst_eff[i] = effective(in, scene.meshes[in.mesh].local_bounds());
+    inst_eff[i] = effective(in, meshes[in.mesh].bounds);
   }
   for (const auto* v : {&piece_eff, &inst_eff})
     for (const Effective& e : *v)
@@ -194,8 +197,8 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     world_box(e, plo, phi, e.margin, wlo, whi);
     double cells = 0;
     for (int k = 0; k < 3; ++k) cells = std::max(cells, (whi[k] - wlo[k]) / cell);
-    size_t lv = 0;  // the level whose cells are about one grid cell
-    while (lv + 1 < p.levels.size() && double(p.levels[lv].r) < cells) ++lv;
+    size_t lv = 0;  // the level whose cells span about two grid cells (8x fewer boxes than one)
+    while (lv + 1 < p.levels.size() && double(p.levels[lv].r) < cells / 2) ++lv;
     const MeshProxies::Level& L = p.levels[lv];
     const double lc = p.cell * (kLocalRes / L.r);
     for (uint32_t z = 0; z < L.r; ++z)

@@ -32,6 +32,7 @@ class MeshProxies {
     std::vector<uint8_t> occupied;  // r^3, x fastest
   };
   struct Proxy {
+    Aabb bounds;                    // the mesh's local bounds (computed once, not per instance)
     Vec3d origin;                   // local grid corner
     double cell = 0;                // finest local cell
     std::vector<Level> levels;      // r = 1, 2, 4, ..., 32
