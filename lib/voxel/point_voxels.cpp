@@ -174,13 +174,17 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   out.grid.ray_rel = o.thin ? 0.0f : round_up(kSafety * kU * kappa);
   Grid g({out.grid.origin[0], out.grid.origin[1], out.grid.origin[2]}, cell, res);
 
+  std::vector<Vec3d> world;
   for (size_t i = 0; i < bp.pieces.size(); ++i) {
     const Effective& e = piece_eff[i];
     if (!e.usable) continue;
     const Mesh& mesh = plan.pieces[bp.pieces[i]].mesh;
+    world.resize(mesh.positions.size());  // each vertex moved once, not once per triangle
+    for (size_t k = 0; k < world.size(); ++k) world[k] = e.apply(to_d(mesh.positions[k]));
     for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
-      const Vec3d a = e.apply(to_d(mesh.positions[mesh.indices[t]])), b = e.apply(to_d(mesh.positions[mesh.indices[t + 1]])),
-                  c = e.apply(to_d(mesh.positions[mesh.indices[t + 2]]));
+      const Vec3d& a = world[mesh.indices[t]];
+      const Vec3d& b = world[mesh.indices[t + 1]];
+      const Vec3d& c = world[mesh.indices[t + 2]];
       if (o.thin)
         voxelize_triangle_thin(g, a, b, c);
       else

@@ -104,6 +104,19 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   int f[3], l[3];
   for (int k = 0; k < 3; ++k)
     if (!cell_range(g, k, lo[k], hi[k], f[k], l[k])) return;
+  if (f[0] == l[0] && f[1] == l[1] && f[2] == l[2]) {
+    // The grown bounding box meets one cell only: the triangle lies in the grid and touches no other
+    // cell, so it touches this one (most triangles of a scan at the chosen resolution).
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) {
+      const double c0 = g.origin[k] + f[k] * g.cell;
+      inside = inside && lo[k] + margin >= c0 - margin && hi[k] - margin <= c0 + g.cell + margin;
+    }
+    if (inside) {
+      g.set(uint32_t(f[0]), uint32_t(f[1]), uint32_t(f[2]));
+      return;
+    }
+  }
   const double dp = g.cell + 2 * margin;  // grown cell size; grown corner = origin + i*cell - margin
   // Plane: d1, d2 from the critical point c (dp where n > 0).
   Vec3d c{n.x > 0 ? dp : 0, n.y > 0 ? dp : 0, n.z > 0 ? dp : 0};
