@@ -64,7 +64,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-dag", no_dag, "store no occlusion-culling DAGs (smaller package, no culling)");
   app.add_option("--dag-resolution", dag_resolution,
                  "cells per axis of every batching point's culling grid: a power of two, 4..1024 "
-                 "(default: chosen per point from its triangle count, 32..512)")
+                 "(default: chosen per point from its triangle count, 32..512; halved where cells would be smaller "
+                 "than twice the float-rounding margin, far from the origin)")
       ->check([](const std::string& s) {
         try {
           const unsigned long v = std::stoul(s);

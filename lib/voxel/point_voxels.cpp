@@ -152,7 +152,7 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   uint64_t detail = bp.unique_triangles;
   for (uint32_t i : bp.instances)
     detail += std::min<uint64_t>(scene.meshes[scene.instances[i].mesh].triangle_count(), kInstanceDetail);
-  const uint32_t res = o.resolution ? o.resolution : choose_resolution(detail);
+  uint32_t res = o.resolution ? o.resolution : choose_resolution(detail);
   // Grid: the point's bounds grown by twice the margin (the effective geometry may lie up to `margin`
   // outside the bounds computed from the double transforms), cubic cells, origin and cell as floats.
   Vec3d lo = bp.bounds.lo, hi = bp.bounds.hi;
@@ -164,6 +164,11 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     out.grid.origin[k] = round_down(lo[k] - grow);
     ext = std::max(ext, (hi[k] + grow) - double(out.grid.origin[k]));
   }
+  // Cells no smaller than twice the margin: finer ones would all be set (every triangle grown by the
+  // margin covers margin/cell cells per axis) at a cost that grows with the cube of it — far from the
+  // origin (3e6: margin ~6 units) a requested 1024^3 grid of a 10-unit point would test 10^8 cells
+  // per triangle. The convert summary's resolution histogram shows the resolution used.
+  while (res > fmt::kDagMinResolution && ext / res < 2 * margin) res /= 2;
   float cell = round_up(ext / res);
   if (!(cell > 0)) cell = std::numeric_limits<float>::min();
   for (int k = 0; k < 3; ++k)  // the float cell must still cover the grown bounds

@@ -17,7 +17,8 @@ struct VoxelOptions {
 // "Model no more than a scene needs": R ≈ sqrt(T) / 2 cells per axis for T triangles (a surface of T
 // triangles covers O(R^2) cells, so cells per triangle stay near 1/4 to 1), rounded to a power of two
 // and clamped to [32, 512]. The bunny (69k triangles) gets 128^3, the seed's default. voxelize_point
-// counts a point's unique triangles plus, per instance, at most 256 of its mesh's triangles.
+// counts a point's unique triangles plus, per instance, at most 256 of its mesh's triangles; it halves
+// any resolution (also a forced one) whose cells would be smaller than twice the point's margin.
 uint32_t choose_resolution(uint64_t triangles);
 
 // Coarse local occupancy of every instanced mesh (a pyramid 32^3 ... 1^3 of conservative voxels in
