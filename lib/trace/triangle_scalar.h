@@ -40,26 +40,26 @@ inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail:
     const float eu = kEdgeBound * (std::fabs(cx * by) + std::fabs(cy * bx));
     const float ev = kEdgeBound * (std::fabs(ax * cy) + std::fabs(ay * cx));
     const float ew = kEdgeBound * (std::fabs(bx * ay) + std::fabs(by * ax));
-    if (std::fabs(u) <= eu || std::fabs(v) <= ev || std::fabs(w) <= ew) [[unlikely]] {
-      const float q0[3] = {blk.v0[kx][i], blk.v0[ky][i], blk.v0[kz][i]};
-      const float q1[3] = {blk.v1[kx][i], blk.v1[ky][i], blk.v1[kz][i]};
-      const float q2[3] = {blk.v2[kx][i], blk.v2[ky][i], blk.v2[kz][i]};
+    const float p0[3] = {blk.v0[kx][i], blk.v0[ky][i], blk.v0[kz][i]};
+    const float p1[3] = {blk.v1[kx][i], blk.v1[ky][i], blk.v1[kz][i]};
+    const float p2[3] = {blk.v2[kx][i], blk.v2[ky][i], blk.v2[kz][i]};
+    // The lane in double (triangle_double); true when it is a hit, recorded in `out`.
+    auto in_double = [&]() {
       float t, bu, bv;
-      if (!triangle_double(ax, ay, bx, by, cx, cy, q0, q1, q2, r.org_k, r.dir_k, r.tnear, tfar, &t, &bu, &bv)) continue;
+      if (!triangle_double(ax, ay, bx, by, cx, cy, p0, p1, p2, r.org_k, r.dir_k, r.tnear, tfar, &t, &bu, &bv)) return false;
+      if constexpr (!kAny) out->t[i] = t, out->u[i] = bu, out->v[i] = bv;
+      return true;
+    };
+    if (std::fabs(u) <= eu || std::fabs(v) <= ev || std::fabs(w) <= ew) [[unlikely]] {
+      if (!in_double()) continue;
       if constexpr (kAny) return 1u << i;
       mask |= 1u << i;
-      out->t[i] = t;
-      out->u[i] = bu;
-      out->v[i] = bv;
       continue;
     }
     const bool inside = (u >= 0.0f && v >= 0.0f && w >= 0.0f) || (u <= 0.0f && v <= 0.0f && w <= 0.0f);
     if (!inside) continue;
     const float det = (u + v) + w;
     if (!(det != 0.0f)) continue;
-    const float p0[3] = {blk.v0[kx][i], blk.v0[ky][i], blk.v0[kz][i]};
-    const float p1[3] = {blk.v1[kx][i], blk.v1[ky][i], blk.v1[kz][i]};
-    const float p2[3] = {blk.v2[kx][i], blk.v2[ky][i], blk.v2[kz][i]};
     const float d01[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
     const float d12[3] = {p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]};
     const float d20[3] = {p0[0] - p2[0], p0[1] - p2[1], p0[2] - p2[2]};
@@ -86,13 +86,9 @@ inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail:
                        (std::fabs(ea[2] * eb[0]) + std::fabs(ea[0] * eb[2])) * std::fabs(r.dir_k[1]) +
                        (std::fabs(ea[0] * eb[1]) + std::fabs(ea[1] * eb[0])) * std::fabs(r.dir_k[2]);
     if (std::fabs(den) <= kDenBound * dsum) [[unlikely]] {  // nearly parallel: triangle_double decides
-      float t, bu, bv;
-      if (!triangle_double(ax, ay, bx, by, cx, cy, p0, p1, p2, r.org_k, r.dir_k, r.tnear, tfar, &t, &bu, &bv)) continue;
+      if (!in_double()) continue;
       if constexpr (kAny) return 1u << i;
       mask |= 1u << i;
-      out->t[i] = t;
-      out->u[i] = bu;
-      out->v[i] = bv;
       continue;
     }
     if (!(den != 0.0f)) continue;  // the SIMD path divides and rejects the non-finite t
