@@ -37,6 +37,7 @@ class Grid {
   void set(uint32_t x, uint32_t y, uint32_t z) {
     block_ref(x >> 2, y >> 2, z >> 2) |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
   }
+  void or_block(uint32_t bx, uint32_t by, uint32_t bz, uint64_t mask) { block_ref(bx, by, bz) |= mask; }
   uint64_t count() const;
   // True when no brick overlapping the block region [b, b + size)^3 is allocated (then it is empty).
   bool region_empty(uint32_t bx, uint32_t by, uint32_t bz, uint32_t size) const;
@@ -54,7 +55,12 @@ class Grid {
     const uint32_t m = edge_ - 1;
     return (bx & m) + edge_ * ((by & m) + size_t(edge_) * (bz & m));
   }
-  uint64_t& block_ref(uint32_t bx, uint32_t by, uint32_t bz);
+  uint64_t& block_ref(uint32_t bx, uint32_t by, uint32_t bz) {
+    uint32_t& b = brick_[brick_index(bx, by, bz)];
+    if (!b) [[unlikely]] allocate_brick(b);
+    return store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)];
+  }
+  void allocate_brick(uint32_t& slot);  // a zeroed brick for an absent one
   uint32_t edge_ = 1, shift_ = 0, bricks_ = 1;  // blocks per brick edge (min(8, R/4)), log2, bricks per axis
   size_t brick_blocks_ = 1;
   std::vector<uint32_t> brick_{0};               // per brick: 0 = absent, else 1 + its slot in store_

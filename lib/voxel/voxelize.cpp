@@ -18,13 +18,9 @@ Grid::Grid(const Vec3d& origin_, double cell_, uint32_t resolution_)
   brick_.assign(size_t(bricks_) * bricks_ * bricks_, 0);
 }
 
-uint64_t& Grid::block_ref(uint32_t bx, uint32_t by, uint32_t bz) {
-  uint32_t& b = brick_[brick_index(bx, by, bz)];
-  if (!b) {
-    store_.resize(store_.size() + brick_blocks_, 0);
-    b = uint32_t(store_.size() / brick_blocks_);
-  }
-  return store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)];
+void Grid::allocate_brick(uint32_t& slot) {
+  store_.resize(store_.size() + brick_blocks_, 0);
+  slot = uint32_t(store_.size() / brick_blocks_);
 }
 
 uint64_t Grid::count() const {
@@ -55,18 +51,25 @@ std::vector<uint64_t> Grid::dense() const {
 namespace {
 
 // Cell range [first, last] whose cells overlap [lo, hi] on one axis; false when outside the grid.
-bool cell_range(const Grid& g, int axis, double lo, double hi, int& first, int& last) {
-  // The quotients are rounded (relative 2^-53 each): pad by one cell only when one lies within 1e-9
+bool cell_range(double origin, double inv_cell, uint32_t resolution, double lo, double hi, int& first, int& last) {
+  // The quotients are rounded (relative 2^-52 each): pad by one cell only when one lies within 1e-9
   // (relative) of a cell plane; the exact tests decide. Most small triangles then test 1-8 cells, not 27.
-  const double qa = (lo - g.origin[axis]) / g.cell, qb = (hi - g.origin[axis]) / g.cell;
+  const double qa = (lo - origin) * inv_cell, qb = (hi - origin) * inv_cell;
   const double pa = 1e-9 * (std::fabs(qa) + 1), pb = 1e-9 * (std::fabs(qb) + 1);
-  const double a = std::floor(qa - pa), b = std::floor(qb + pb);
+  const double a = qa - pa, b = qb + pb, r = double(resolution);
   // A closed box touching the grid's upper face (qa == R) or lower face (qb == 0) still reaches the
-  // boundary cell: the padding makes a == R - 1 or b == 0 there.
-  if (!(b >= 0) || !(a <= double(g.resolution) - 1)) return false;  // also NaN
-  first = int(std::max(a, 0.0));
-  last = int(std::min(b, double(g.resolution) - 1));
+  // boundary cell: the padding makes floor(a) == R - 1 or floor(b) == 0 there.
+  if (!(b >= 0) || !(a < r)) return false;  // also NaN
+  // floor() by truncation on values clamped to [-1, R]: no libm call (baseline x86-64 has no roundsd).
+  const double ac = std::max(a, -1.0), bc = std::min(b, r);
+  const int ia = int(ac) - (double(int(ac)) > ac), ib = int(bc) - (double(int(bc)) > bc);
+  first = std::max(ia, 0);
+  last = std::min(ib, int(resolution) - 1);
   return first <= last;
+}
+
+bool cell_range(const Grid& g, int axis, double lo, double hi, int& first, int& last) {
+  return cell_range(g.origin[axis], 1 / g.cell, g.resolution, lo, hi, first, last);
 }
 
 }  // namespace
@@ -87,71 +90,140 @@ void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
 // Schwarz & Seidel 2010 §3.1: a triangle overlaps a box (corner p, size dp) iff their bounding boxes
 // overlap, the plane separates the box's critical corners, and in each of the xy, yz, zx projections
 // the critical corner of the box lies inside every edge function. The box here is the cell grown by
-// `margin`, so a triangle within `margin` of a cell sets it.
+// `margin`, so a triangle within `margin` of a cell sets it. Plain arrays throughout (no per-axis
+// branches): the converter runs this once per triangle of every batching point.
 void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v2, double margin) {
-  Vec3d lo, hi;
+  const double v[3][3] = {{v0.x, v0.y, v0.z}, {v1.x, v1.y, v1.z}, {v2.x, v2.y, v2.z}};
+  const double org[3] = {g.origin.x, g.origin.y, g.origin.z};
+  double lo[3], hi[3], e[3][3];
   for (int k = 0; k < 3; ++k) {
-    lo[k] = std::min({v0[k], v1[k], v2[k]}) - margin;
-    hi[k] = std::max({v0[k], v1[k], v2[k]}) + margin;
+    lo[k] = std::min(v[0][k], std::min(v[1][k], v[2][k])) - margin;
+    hi[k] = std::max(v[0][k], std::max(v[1][k], v[2][k])) + margin;
+    for (int i = 0; i < 3; ++i) e[i][k] = v[i == 2 ? 0 : i + 1][k] - v[i][k];  // e0 = v1 - v0, e1 = v2 - v1, e2 = v0 - v2
   }
-  const Vec3d e0 = v1 - v0, e1 = v2 - v1, e2 = v0 - v2;
-  const Vec3d n = cross(e0, e1);
-  if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z))) return;  // non-finite: never hit
-  if (n.x == 0 && n.y == 0 && n.z == 0) {
-    g.mark_box(lo, hi);  // zero area: the grown bounding box is a superset
+  const double n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                       e[0][0] * e[1][1] - e[0][1] * e[1][0]};
+  if (!(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) return;  // non-finite: never hit
+  if (n[0] == 0 && n[1] == 0 && n[2] == 0) {
+    g.mark_box({lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]});  // zero area: the grown bounding box is a superset
     return;
   }
+  const double cell = g.cell, inv_cell = 1 / cell;
   int f[3], l[3];
   for (int k = 0; k < 3; ++k)
-    if (!cell_range(g, k, lo[k], hi[k], f[k], l[k])) return;
-  if (f[0] == l[0] && f[1] == l[1] && f[2] == l[2]) {
-    // The grown bounding box meets one cell only: the triangle lies in the grid and touches no other
-    // cell, so it touches this one (most triangles of a scan at the chosen resolution).
+    if (!cell_range(org[k], inv_cell, g.resolution, lo[k], hi[k], f[k], l[k])) return;
+  // Exact ranges (the quotients were padded): cell i spans [origin + i*cell, origin + (i+1)*cell].
+  int longer = -1, runs = 0;
+  for (int k = 0; k < 3; ++k) {
+    while (f[k] < l[k] && org[k] + (f[k] + 1) * cell < lo[k]) ++f[k];
+    while (l[k] > f[k] && org[k] + l[k] * cell > hi[k]) --l[k];
+    if (l[k] > f[k]) longer = k, ++runs;
+  }
+  if (runs <= 1) {
+    // The grown bounding box meets one row of cells: when the triangle lies within the grown cross
+    // section of that row, it is connected and its projection on the row's axis covers every cell of
+    // the row (each within `margin`), so it touches all of them and no other. Most triangles of a
+    // scan at the chosen resolution end here.
     bool inside = true;
     for (int k = 0; k < 3; ++k) {
-      const double c0 = g.origin[k] + f[k] * g.cell;
-      inside = inside && lo[k] + margin >= c0 - margin && hi[k] - margin <= c0 + g.cell + margin;
+      if (k == longer) continue;
+      const double c0 = org[k] + f[k] * cell;
+      inside = inside && lo[k] + margin >= c0 - margin && hi[k] - margin <= c0 + cell + margin;
     }
     if (inside) {
-      g.set(uint32_t(f[0]), uint32_t(f[1]), uint32_t(f[2]));
+      const int k = longer < 0 ? 0 : longer;
+      uint32_t c[3] = {uint32_t(f[0]), uint32_t(f[1]), uint32_t(f[2])};
+      for (int i = f[k]; i <= l[k]; ++i) {
+        c[k] = uint32_t(i);
+        g.set(c[0], c[1], c[2]);
+      }
       return;
     }
   }
-  const double dp = g.cell + 2 * margin;  // grown cell size; grown corner = origin + i*cell - margin
+  const double dp = cell + 2 * margin;  // grown cell size; grown corner = origin + i*cell - margin
   // Plane: d1, d2 from the critical point c (dp where n > 0).
-  Vec3d c{n.x > 0 ? dp : 0, n.y > 0 ? dp : 0, n.z > 0 ? dp : 0};
-  const double d1 = dot(n, c - v0), d2 = dot(n, Vec3d{dp, dp, dp} - c - v0);
+  double d1 = 0, d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double c = n[k] > 0 ? dp : 0;
+    d1 += n[k] * (c - v[0][k]);
+    d2 += n[k] * ((dp - c) - v[0][k]);
+  }
   // Projected edge functions per plane (a, b) = (x, y), (y, z), (z, x); the orientation follows the
-  // normal's component on the third axis.
-  struct Edge { double nx, ny, d; };
-  Edge ed[3][3];
-  const Vec3d e[3] = {e0, e1, e2}, v[3] = {v0, v1, v2};
-  const int ax[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
+  // normal's component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
+  double ex[3][3], ey[3][3], ed[3][3];
   for (int p = 0; p < 3; ++p) {
-    const int a = ax[p][0], b = ax[p][1], w = ax[p][2];
+    const int a = p, b = p == 2 ? 0 : p + 1, w = p == 0 ? 2 : p - 1;
     const double s = n[w] >= 0 ? 1.0 : -1.0;
     for (int i = 0; i < 3; ++i) {
       const double nx = -e[i][b] * s, ny = e[i][a] * s;
-      ed[p][i] = {nx, ny, -(nx * v[i][a] + ny * v[i][b]) + std::max(0.0, dp * nx) + std::max(0.0, dp * ny)};
+      ex[p][i] = nx, ey[p][i] = ny;
+      ed[p][i] = -(nx * v[i][a] + ny * v[i][b]) + std::max(0.0, dp * nx) + std::max(0.0, dp * ny);
     }
   }
+  const int count[3] = {l[0] - f[0] + 1, l[1] - f[1] + 1, l[2] - f[2] + 1};
+  if (count[0] <= 4 && count[1] <= 4 && count[2] <= 4) {
+    // Schwarz & Seidel 2010 §3.1 by columns: the projected edge tests of plane (a, b) depend on the
+    // cell's a and b only, so each plane's 3 edges are evaluated once per column of the small box
+    // (at most 16 per plane) and the cells look up three bits; the bounding-box test is per axis.
+    double pc[3][4];
+    uint32_t axis_ok[3];
+    for (int k = 0; k < 3; ++k) {
+      axis_ok[k] = 0;
+      for (int i = 0; i < count[k]; ++i) {
+        pc[k][i] = org[k] + (f[k] + i) * cell - margin;
+        if (!(pc[k][i] > hi[k] - margin || pc[k][i] + dp < lo[k] + margin)) axis_ok[k] |= 1u << i;
+      }
+    }
+    uint32_t column_ok[3];  // plane p: bit ia + 4 ib
+    for (int p = 0; p < 3; ++p) {
+      const int a = p, b = p == 2 ? 0 : p + 1;
+      column_ok[p] = 0;
+      for (int ib = 0; ib < count[b]; ++ib)
+        for (int ia = 0; ia < count[a]; ++ia) {
+          bool inside = true;
+          for (int i = 0; i < 3; ++i) inside &= ex[p][i] * pc[a][ia] + ey[p][i] * pc[b][ib] + ed[p][i] >= 0;
+          column_ok[p] |= uint32_t(inside) << (ia + 4 * ib);
+        }
+    }
+    // Cells of one 4^3 block (most boxes) are gathered into its mask and stored once.
+    const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
+    uint64_t bits = 0;
+    for (int iz = 0; iz < count[2]; ++iz) {
+      if (!(axis_ok[2] >> iz & 1)) continue;
+      for (int iy = 0; iy < count[1]; ++iy) {
+        if (!(axis_ok[1] >> iy & 1) || !(column_ok[1] >> (iy + 4 * iz) & 1)) continue;
+        for (int ix = 0; ix < count[0]; ++ix) {
+          if (!(axis_ok[0] >> ix & 1) || !(column_ok[0] >> (ix + 4 * iy) & 1) || !(column_ok[2] >> (iz + 4 * ix) & 1))
+            continue;
+          const double np = n[0] * pc[0][ix] + n[1] * pc[1][iy] + n[2] * pc[2][iz];
+          if ((np + d1) * (np + d2) > 0) continue;
+          const uint32_t x = uint32_t(f[0] + ix), y = uint32_t(f[1] + iy), z = uint32_t(f[2] + iz);
+          if (one_block)
+            bits |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
+          else
+            g.set(x, y, z);
+        }
+      }
+    }
+    if (bits) g.or_block(uint32_t(f[0]) >> 2, uint32_t(f[1]) >> 2, uint32_t(f[2]) >> 2, bits);
+    return;
+  }
   for (int z = f[2]; z <= l[2]; ++z) {
-    const double pz = g.origin.z + z * g.cell - margin;
+    const double pz = org[2] + z * cell - margin;
+    if (pz > hi[2] - margin || pz + dp < lo[2] + margin) continue;  // bounding boxes (the range is padded)
     for (int y = f[1]; y <= l[1]; ++y) {
-      const double py = g.origin.y + y * g.cell - margin;
+      const double py = org[1] + y * cell - margin;
+      if (py > hi[1] - margin || py + dp < lo[1] + margin) continue;
       for (int x = f[0]; x <= l[0]; ++x) {
-        const double px = g.origin.x + x * g.cell - margin;
-        const Vec3d p{px, py, pz};
-        // Bounding boxes (the cell range is padded by one cell).
-        if (px > hi.x - margin || px + dp < lo.x + margin || py > hi.y - margin || py + dp < lo.y + margin ||
-            pz > hi.z - margin || pz + dp < lo.z + margin)
-          continue;
-        const double np = dot(n, p);
+        const double px = org[0] + x * cell - margin;
+        if (px > hi[0] - margin || px + dp < lo[0] + margin) continue;
+        const double np = n[0] * px + n[1] * py + n[2] * pz;
         if ((np + d1) * (np + d2) > 0) continue;
+        const double pc[3] = {px, py, pz};
         bool inside = true;
-        for (int q = 0; q < 3 && inside; ++q) {
-          const double pa = p[ax[q][0]], pb = p[ax[q][1]];
-          for (int i = 0; i < 3 && inside; ++i) inside = ed[q][i].nx * pa + ed[q][i].ny * pb + ed[q][i].d >= 0;
+        for (int p = 0; p < 3; ++p) {
+          const double pa = pc[p], pb = pc[p == 2 ? 0 : p + 1];
+          for (int i = 0; i < 3; ++i) inside &= ex[p][i] * pa + ey[p][i] * pb + ed[p][i] >= 0;
         }
         if (inside) g.set(uint32_t(x), uint32_t(y), uint32_t(z));
       }
