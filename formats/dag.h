@@ -1,7 +1,8 @@
 #pragma once
-// Occlusion-culling proxies (formats/SPEC.md §4.5, version 2.0): per batching point a conservative
+// Occlusion-culling proxies (formats/SPEC.md §4.5, version 3.0): per batching point a conservative
 // voxel grid stored as a sparse voxel DAG whose nodes live in one pool shared by every batching point
-// of the package (Molenaar 2019 §3.3; Kämpe et al. 2013 bottom-up hashing).
+// of the package (Molenaar 2019 §3.3; Kämpe et al. 2013 bottom-up hashing). Version 3.0 adds inline leaves.
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 
@@ -38,13 +39,30 @@ static_assert(sizeof(DagGrid) == 32 && offsetof(DagGrid, cell) == 12 && offsetof
 // An inner node at word offset o:
 //   word o       bits 0..7 child mask (child c = x | y << 1 | z << 2, 1 = the child's region is
 //                non-empty); bits 8..15 full mask (a subset of the child mask: the child's region is
-//                entirely set and has no reference); bits 16..31 zero
-//   words o+1..  one uint32 reference per child in the child mask but not in the full mask, in
-//                ascending child order: a word offset (children above level 0) or a leaf index
-//                (children at level 0). A node has at least one non-full child or a mask != 0xFF.
+//                entirely set and has no reference); bits 16..23 inline mask (level-1 nodes only, a
+//                subset of child mask & ~full mask: that child's leaf mask is stored in the node);
+//                bits 24..31 zero
+//   words o+1..  per child in the child mask but not in the full mask, in ascending child order:
+//                inline children two words (the leaf mask, low half first), the others one uint32
+//                reference: a word offset (children above level 0) or a leaf index (children at
+//                level 0). A node has at least one non-full child or a mask != 0xFF.
 // A leaf mask: bit x + 4y + 16z is the cell (x, y, z) of the 4^3 block; never 0, never all ones.
+// The converter inlines a leaf that only one level-1 node of its batching point uses (a reference
+// plus a pooled mask cost 12 bytes, an inline mask 8), and pools the others (version 3.0).
 // Identical nodes (same words) and identical leaves are stored once in the whole package.
 inline constexpr uint32_t dag_child_mask(uint32_t word) { return word & 0xFFu; }
 inline constexpr uint32_t dag_full_mask(uint32_t word) { return (word >> 8) & 0xFFu; }
+inline constexpr uint32_t dag_inline_mask(uint32_t word) { return (word >> 16) & 0xFFu; }
+// Words of the node whose first word is `word`: 1 + one per reference + two per inline leaf.
+inline constexpr uint32_t dag_node_words(uint32_t word) {
+  return 1u + uint32_t(std::popcount(dag_child_mask(word) & ~dag_full_mask(word))) +
+         uint32_t(std::popcount(dag_inline_mask(word)));
+}
+// Word index, after the node's first word, where child c's reference or inline mask starts.
+inline constexpr uint32_t dag_child_slot(uint32_t word, uint32_t c) {
+  const uint32_t below = (1u << c) - 1u;
+  return uint32_t(std::popcount(dag_child_mask(word) & ~dag_full_mask(word) & below)) +
+         uint32_t(std::popcount(dag_inline_mask(word) & below));
+}
 
 }  // namespace rtp::fmt

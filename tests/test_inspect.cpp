@@ -314,7 +314,7 @@ TEST_F(Inspect, DagBlockMatchesThePoolChunkAndTheConverter) {
     uint64_t nodes = 0, off = 0;
     while (off < d.words.size()) {
       ++nodes;
-      off += 1 + uint64_t(std::popcount(fmt::dag_child_mask(d.words[off]) & ~fmt::dag_full_mask(d.words[off])));
+      off += fmt::dag_node_words(d.words[off]);
     }
     EXPECT_EQ(off, d.words.size());
     std::map<uint32_t, uint64_t> resolutions;

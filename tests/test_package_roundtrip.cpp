@@ -267,12 +267,17 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
     caught += outcome(d) != "";
   }
   EXPECT_EQ(caught, 1000);
-  // A package of the previous major version (1.x: no culling DAGs) is refused with a version message.
-  std::string v = bytes;
-  v[8] = 1;
-  EXPECT_EQ(outcome(v), "package version 1." + std::to_string(rtp::fmt::kVersionMinor) +
-                            " is not supported by this reader (version 2.x): it was written by an older rtpack-convert; "
-                            "convert the source again");
+  // Packages of earlier major versions (1.x: no culling DAGs; 2.x: no inline DAG leaves) are refused with
+  // a version message.
+  for (const char major : {char(1), char(2)}) {
+    std::string v = bytes;
+    v[8] = major;
+    std::string expected = "package version ";
+    expected += std::to_string(int(major)) + "." + std::to_string(rtp::fmt::kVersionMinor);
+    expected += " is not supported by this reader (version 3.x): it was written by an older rtpack-convert; "
+                "convert the source again";
+    EXPECT_EQ(outcome(v), expected);
+  }
 }
 
 }  // namespace

@@ -108,10 +108,44 @@ TEST(VoxelDag, BuildDecodeRoundTrip) {
     Grid almost = full;
     almost.set_block(nb - 1, nb - 1, nb - 1, ~uint64_t(0) >> 1);
     const LocalDag a = build_dag(almost);
-    EXPECT_EQ(a.leaves.size(), 1u);
+    EXPECT_EQ(a.leaves.size(), R == 4 ? 1u : 0u);  // used once: inline in its level-1 node (R = 4: the root)
     EXPECT_EQ(a.node_offsets.size(), size_t(std::countr_zero(R / 4)));  // one node per level
     EXPECT_TRUE(voxel::decode_dag(dag_grid(almost, a.root), view_of(a)).dense() == almost.dense());
   }
+}
+
+// formats/dag.h 3.0: a leaf that one level-1 node references is stored inline (two words), a leaf that
+// several reference is pooled once; the pool keeps both forms and decodes them back.
+TEST(VoxelDag, InlinesLeavesUsedOnce) {
+  Grid g({0, 0, 0}, 1, 16);  // 4^3 blocks: a root (level 2) over 8 level-1 nodes of 2^3 blocks each
+  const uint64_t shared = 0x0000'0000'0001'0021ull, once = 0x8000'0000'0000'0400ull, other = 0x00F0'0000'0000'0000ull;
+  g.set_block(0, 0, 0, shared);  // node (0,0,0): the shared mask twice and `once`
+  g.set_block(1, 0, 0, shared);
+  g.set_block(0, 1, 0, once);
+  g.set_block(2, 2, 2, shared);  // node (1,1,1): the shared mask (a third use) and `other`
+  g.set_block(3, 3, 3, other);
+  const LocalDag d = build_dag(g);
+  ASSERT_EQ(d.leaves, std::vector<uint64_t>{shared});
+  // Root 1 + 2 references; node (0,0,0): 1 + 2 references + 2 inline words; node (1,1,1): 1 + 1 + 2.
+  EXPECT_EQ(d.words.size(), 3u + 5u + 4u);
+  EXPECT_EQ(d.bytes(), 12u * 4 + 8);
+  uint32_t inline_children = 0;
+  for (size_t k = 0; k < d.node_offsets.size(); ++k)
+    if (d.node_levels[k] == 1) inline_children += uint32_t(std::popcount(fmt::dag_inline_mask(d.words[d.node_offsets[k]])));
+  EXPECT_EQ(inline_children, 2u);
+  EXPECT_EQ(voxel::check_dag(dag_grid(g, d.root), view_of(d)), "");
+  EXPECT_TRUE(voxel::decode_dag(dag_grid(g, d.root), view_of(d)).dense() == g.dense());
+  // In a pool with a grid that uses `once` twice, `once` is pooled for that grid and stays inline here.
+  Grid h({0, 0, 0}, 1, 16);
+  h.set_block(0, 0, 0, once);
+  h.set_block(3, 3, 3, once);
+  DagPool pool;
+  const uint32_t rg = pool.add(d), rh = pool.add(build_dag(h));
+  EXPECT_EQ(pool.leaves(), (std::vector<uint64_t>{shared, once}));
+  EXPECT_EQ(voxel::check_dags(std::vector<fmt::DagGrid>{dag_grid(g, rg), dag_grid(h, rh)}.data(), 2, view_of(pool)), "");
+  EXPECT_TRUE(voxel::decode_dag(dag_grid(g, rg), view_of(pool)).dense() == g.dense());
+  EXPECT_TRUE(voxel::decode_dag(dag_grid(h, rh), view_of(pool)).dense() == h.dense());
+  EXPECT_EQ(voxel::dag_reachable_bytes(dag_grid(g, rg), view_of(pool)), d.bytes());
 }
 
 // TESTING.md item 8: the shared pool returns every grid exactly, shares identical subtrees, and is
@@ -168,18 +202,32 @@ TEST(VoxelDag, PoolSharingAndDeterminism) {
 TEST(VoxelDag, CheckDagReportsCorruption) {
   Rng rng(4);
   Grid g({0, 0, 0}, 1, 32);
+  // Random cells (leaves used once: stored inline) and one cell in every other empty block of the
+  // lower half (the same mask in many blocks: a pooled leaf that several level-1 nodes reference).
   for (int i = 0; i < 300; ++i) g.set(rng.below(32), rng.below(32), rng.below(32));
+  for (uint32_t z = 0; z < 4; ++z)
+    for (uint32_t y = 0; y < 8; ++y)
+      for (uint32_t x = 0; x < 8; ++x)
+        if ((x + y + z) % 2 == 0 && g.block(x, y, z) == 0) g.set(4 * x + 1, 4 * y + 2, 4 * z + 3);
   const LocalDag d = build_dag(g);
   ASSERT_NE(d.root, fmt::kDagEmpty);
   ASSERT_NE(d.root, fmt::kDagFull);
   const fmt::DagGrid dg = dag_grid(g, d.root);
   ASSERT_EQ(voxel::check_dag(dg, view_of(d)), "");
-  // A node of level 1 (children are leaves) and the root (level 3, children are nodes).
-  size_t level1 = 0;
-  while (d.node_levels[level1] != 1) ++level1;
-  const uint32_t n1 = d.node_offsets[level1], root = d.root;
+  // Level-1 nodes with an empty child: one whose children are all pooled leaves (n1), one whose first
+  // child is inline (n2); and the root (level 3, children are nodes).
+  uint32_t n1 = ~0u, n2 = ~0u;
+  for (size_t k = 0; k < d.node_offsets.size(); ++k) {
+    const uint32_t off = d.node_offsets[k], h = d.words[off];
+    if (d.node_levels[k] != 1 || fmt::dag_full_mask(h) != 0 || fmt::dag_child_mask(h) == 0xFF) continue;
+    if (fmt::dag_inline_mask(h) == 0 && n1 == ~0u) n1 = off;
+    if ((fmt::dag_inline_mask(h) & (fmt::dag_child_mask(h) & -fmt::dag_child_mask(h))) != 0 && n2 == ~0u) n2 = off;
+  }
+  ASSERT_NE(n1, ~0u);
+  ASSERT_NE(n2, ~0u);
+  const uint32_t root = d.root;
   ASSERT_EQ(fmt::dag_full_mask(d.words[root]), 0u);
-  ASSERT_EQ(fmt::dag_full_mask(d.words[n1]), 0u);
+  ASSERT_EQ(fmt::dag_inline_mask(d.words[root]), 0u);
   struct Case {
     const char* what;
     std::function<void(std::vector<uint32_t>&, std::vector<uint64_t>&, fmt::DagGrid&)> corrupt;
@@ -191,11 +239,19 @@ TEST(VoxelDag, CheckDagReportsCorruption) {
       {"empty child mask", [&](auto& w, auto&, auto&) { w[n1] = 0; }},
       {"full mask 0xFF", [&](auto& w, auto&, auto&) { w[n1] = 0xFFu | 0xFFu << 8; }},
       {"full mask outside the child mask", [&](auto& w, auto&, auto&) { w[n1] = (w[n1] & 0xFFu) | (~w[n1] & 0xFFu) << 8; }},
-      {"high bits set", [&](auto& w, auto&, auto&) { w[n1] |= 1u << 20; }},
+      {"high bits set", [&](auto& w, auto&, auto&) { w[n1] |= 1u << 26; }},
       {"references past the pool", [&](auto& w, auto&, auto&) { w.resize(root + 1); }},  // the root is written last
       {"leaf index out of range", [&](auto& w, auto& l, auto&) { w[n1 + 1] = uint32_t(l.size() + 3); }},
       {"leaf mask 0", [&](auto& w, auto& l, auto&) { l[w[n1 + 1]] = 0; }},
       {"leaf mask all ones", [&](auto& w, auto& l, auto&) { l[w[n1 + 1]] = ~uint64_t(0); }},
+      {"inline leaf 0", [&](auto& w, auto&, auto&) { w[n2 + 1] = w[n2 + 2] = 0; }},
+      {"inline leaf all ones", [&](auto& w, auto&, auto&) { w[n2 + 1] = w[n2 + 2] = ~0u; }},
+      {"inline mask outside the references", [&](auto& w, auto&, auto&) { w[n2] |= (~w[n2] & 0xFFu) << 16; }},
+      {"inline leaves above level 1", [&](auto& w, auto&, auto&) { w[root] |= (w[root] & 0xFFu) << 16; }},
+      {"inline leaf runs past the pool", [&](auto& w, auto&, auto& gr) {
+         gr.resolution = 8, gr.root = n2;  // n2 as the level-1 root of an 8^3 grid, its last word cut off
+         w.resize(n2 + fmt::dag_node_words(w[n2]) - 1);
+       }},
       {"resolution not a power of two", [&](auto&, auto&, auto& gr) { gr.resolution = 48; }},
       {"resolution too large", [&](auto&, auto&, auto& gr) { gr.resolution = 2048; }},
       {"cell 0", [&](auto&, auto&, auto& gr) { gr.cell = 0; }},

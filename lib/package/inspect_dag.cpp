@@ -48,12 +48,16 @@ class CellCounter {
     const uint64_t key = uint64_t(ref) << 8 | level;
     if (const auto it = memo_.find(key); it != memo_.end()) return it->second;
     const uint32_t head = v_.words[ref], cm = fmt::dag_child_mask(head), fm = fmt::dag_full_mask(head);
-    node_bytes_.emplace(ref, 4 * uint64_t(1 + std::popcount(cm & ~fm)));
+    const uint32_t im = fmt::dag_inline_mask(head);
+    node_bytes_.emplace(ref, 4 * uint64_t(fmt::dag_node_words(head)));
     const uint64_t full_child = uint64_t(64) << (3 * (level - 1));  // cells of a level-(L-1) region
-    uint64_t sum = 0, k = 0;
+    uint64_t sum = 0;
     for (uint32_t c = 0; c < 8; ++c) {
       if (!(cm >> c & 1)) continue;
-      sum += (fm >> c & 1) ? full_child : count(v_.words[ref + 1 + k++], level - 1);
+      const uint32_t* w = v_.words + ref + 1 + fmt::dag_child_slot(head, c);
+      sum += (fm >> c & 1)   ? full_child
+             : (im >> c & 1) ? uint64_t(std::popcount(w[0] | uint64_t(w[1]) << 32))
+                             : count(w[0], level - 1);
     }
     memo_.emplace(key, sum);
     return sum;

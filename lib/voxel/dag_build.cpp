@@ -53,6 +53,56 @@ struct Builder {
   }
 };
 
+// formats/dag.h (version 3.0): a leaf that one level-1 node alone references is stored in that node
+// (8 bytes instead of a 4-byte reference plus an 8-byte pooled mask); leaves shared by several nodes
+// stay pooled. Nodes were built children first, so one pass in creation order remaps every offset.
+void inline_single_use_leaves(LocalDag& d) {
+  std::vector<uint32_t> uses(d.leaves.size(), 0);
+  for (size_t k = 0; k < d.node_offsets.size(); ++k) {
+    if (d.node_levels[k] != 1) continue;
+    const uint32_t off = d.node_offsets[k], n = fmt::dag_node_words(d.words[off]) - 1;
+    for (uint32_t i = 0; i < n; ++i) ++uses[d.words[off + 1 + i]];
+  }
+  std::vector<uint32_t> leaf_map(d.leaves.size(), kNone);
+  std::vector<uint64_t> leaves;
+  for (size_t i = 0; i < d.leaves.size(); ++i)
+    if (uses[i] != 1) {
+      leaf_map[i] = uint32_t(leaves.size());
+      leaves.push_back(d.leaves[i]);
+    }
+  std::vector<uint32_t> words, node_map(d.words.size(), kNone);
+  std::vector<uint32_t> offsets;
+  for (size_t k = 0; k < d.node_offsets.size(); ++k) {
+    const uint32_t off = d.node_offsets[k], head = d.words[off];
+    const uint32_t refs = fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head);
+    node_map[off] = uint32_t(words.size());
+    offsets.push_back(uint32_t(words.size()));
+    const size_t head_at = words.size();
+    words.push_back(head);
+    uint32_t i = 0, inl = 0;
+    for (uint32_t c = 0; c < 8; ++c) {
+      if (!(refs >> c & 1)) continue;
+      const uint32_t r = d.words[off + 1 + i++];
+      if (d.node_levels[k] != 1) {
+        words.push_back(node_map[r]);
+      } else if (uses[r] == 1) {
+        inl |= 1u << c;
+        words.push_back(uint32_t(d.leaves[r]));
+        words.push_back(uint32_t(d.leaves[r] >> 32));
+      } else {
+        words.push_back(leaf_map[r]);
+      }
+    }
+    words[head_at] |= inl << 16;
+  }
+  const bool root_is_node = !d.node_offsets.empty() && d.root != kNone && d.root != fmt::kDagFull;
+  if (root_is_node) d.root = node_map[d.root];
+  else if (d.root != kNone && d.root != fmt::kDagFull) d.root = leaf_map[d.root];  // R = 4: the root is a leaf
+  d.words = std::move(words);
+  d.node_offsets = std::move(offsets);
+  d.leaves = std::move(leaves);
+}
+
 }  // namespace
 
 LocalDag build_dag(const Grid& g) {
@@ -60,6 +110,7 @@ LocalDag build_dag(const Grid& g) {
   const int levels = std::countr_zero(g.resolution / 4);
   const uint32_t root = levels == 0 ? b.leaf(0, 0, 0) : b.node(levels, 0, 0, 0);
   b.out.root = root;  // kNone == kDagEmpty
+  inline_single_use_leaves(b.out);
   return std::move(b.out);
 }
 
@@ -74,12 +125,18 @@ uint32_t DagPool::add(const LocalDag& dag) {
   for (size_t k = 0; k < dag.node_offsets.size(); ++k) {
     const uint32_t off = dag.node_offsets[k];
     const uint32_t head = dag.words[off];
-    const int n = std::popcount(fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head));
+    const uint32_t refs = fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head), inl = fmt::dag_inline_mask(head);
     std::u32string w;
     w.push_back(char32_t(head));
-    for (int i = 0; i < n; ++i) {
-      const uint32_t r = dag.words[off + 1 + size_t(i)];
-      w.push_back(char32_t(dag.node_levels[k] == 1 ? leaf_map[r] : node_map.at(r)));
+    for (uint32_t c = 0, i = 0; c < 8; ++c) {
+      if (!(refs >> c & 1)) continue;
+      const uint32_t r = dag.words[off + 1 + i++];
+      if (inl >> c & 1) {  // an inline leaf: its two words as they are
+        w.push_back(char32_t(r));
+        w.push_back(char32_t(dag.words[off + 1 + i++]));
+      } else {
+        w.push_back(char32_t(dag.node_levels[k] == 1 ? leaf_map[r] : node_map.at(r)));
+      }
     }
     // Identical words are identical subtrees at whatever level they are read (references are
     // interpreted by the level of the node that holds them), so the pool shares them across levels.

@@ -65,13 +65,19 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
     if (seen[it.off] & bit) continue;
     seen[it.off] |= bit;
     const uint32_t head = v.words[it.off];
-    const uint32_t cm = fmt::dag_child_mask(head), fm = fmt::dag_full_mask(head);
-    if ((head >> 16) != 0 || cm == 0 || (fm & ~cm) != 0 || fm == 0xFF) return at(it) + ": malformed masks";
-    const uint64_t n = kPop8[cm & ~fm];
+    const uint32_t cm = fmt::dag_child_mask(head), fm = fmt::dag_full_mask(head), im = fmt::dag_inline_mask(head);
+    if ((head >> 24) != 0 || cm == 0 || (fm & ~cm) != 0 || fm == 0xFF || (im & ~(cm & ~fm)) != 0)
+      return at(it) + ": malformed masks";
+    if (im != 0 && it.level != 1) return at(it) + ": inline leaves above level 1";
+    const uint64_t n = kPop8[cm & ~fm] + kPop8[im];
     if (uint64_t(it.off) + 1 + n > v.word_count) return at(it) + ": child references run past the pool";
-    for (uint64_t i = 0; i < n; ++i) {
-      const uint32_t ref = v.words[it.off + 1 + i];
-      if (it.level == 1) {
+    for (uint32_t c = 0, i = 0; c < 8; ++c) {
+      if (!((cm & ~fm) >> c & 1)) continue;
+      const uint32_t ref = v.words[it.off + 1 + i++];
+      if (im >> c & 1) {
+        const uint64_t m = ref | uint64_t(v.words[it.off + 1 + i++]) << 32;
+        if (m == 0 || m == ~uint64_t(0)) return at(it) + ": inline leaf of child " + std::to_string(c) + " is empty or full";
+      } else if (it.level == 1) {
         if (bad_leaf(ref)) return at(it) + ": " + leaf_error(ref);
       } else {
         todo.push_back({ref, it.level - 1});
@@ -109,11 +115,12 @@ uint64_t dag_reachable_bytes(const fmt::DagGrid& g, const DagView& v) {
     auto [off, level] = todo.back();
     todo.pop_back();
     if (!seen.insert(uint64_t(off) << 8 | uint64_t(level)).second) continue;
-    const uint32_t head = v.words[off];
-    const int n = std::popcount(fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head));
-    if (nodes.insert(off).second) bytes += 4 * uint64_t(1 + n);
-    for (int i = 0; i < n; ++i) {
-      const uint32_t ref = v.words[off + 1 + size_t(i)];
+    const uint32_t head = v.words[off], refs = fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head);
+    const uint32_t im = fmt::dag_inline_mask(head);
+    if (nodes.insert(off).second) bytes += 4 * uint64_t(fmt::dag_node_words(head));
+    for (uint32_t c = 0; c < 8; ++c) {
+      if (!(refs >> c & 1) || (im >> c & 1)) continue;  // inline leaves are counted in the node's words
+      const uint32_t ref = v.words[off + 1 + fmt::dag_child_slot(head, c)];
       if (level == 1) {
         if (leaves.insert(ref).second) bytes += 8;
       } else {
@@ -147,15 +154,17 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
       continue;
     }
     const uint32_t head = v.words[it.ref], cm = fmt::dag_child_mask(head), fm = fmt::dag_full_mask(head);
-    const uint32_t half = 1u << (it.level - 1);
-    uint32_t k = 0;
+    const uint32_t im = fmt::dag_inline_mask(head), half = 1u << (it.level - 1);
     for (uint32_t c = 0; c < 8; ++c) {
       if (!(cm >> c & 1)) continue;
       const uint32_t x = it.x + (c & 1) * half, y = it.y + ((c >> 1) & 1) * half, z = it.z + (c >> 2) * half;
+      const uint32_t* w = v.words + it.ref + 1 + fmt::dag_child_slot(head, c);
       if (fm >> c & 1)
         fill(x, y, z, half, ~uint64_t(0));
+      else if (im >> c & 1)
+        fill(x, y, z, 1, w[0] | uint64_t(w[1]) << 32);
       else
-        todo.push_back({v.words[it.ref + 1 + k++], it.level - 1, x, y, z});
+        todo.push_back({w[0], it.level - 1, x, y, z});
     }
   }
   return out;
@@ -227,15 +236,15 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   // tnear/tfar are float in every caller (fmt::Ray); a double that is not gets the wider float.
   const float t_lo = double(tn) <= tnear ? tn : std::nextafter(tn, -kInfF);
   const float t_hi = double(tf) >= tfar ? tf : std::nextafter(tf, kInfF);
-  enum Kind : uint8_t { kNode, kLeaf, kSub, kSet };
+  enum Kind : uint8_t { kNode, kLeaf, kInline, kSub, kSet };
   struct Entry {
-    uint32_t ref;          // node word offset, leaf index, or a sub-block's 8 cell bits
+    uint32_t ref;          // node word offset, leaf index, inline leaf's word offset, or a sub-block's 8 cell bits
     uint16_t x, y, z;      // cell coordinates of the region's minimum corner
     uint8_t kind, level;   // level: DAG level of a kNode (>= 1); size = 4 << level cells
     float t;               // entry distance of the grown region
   };
   auto size_of = [](const Entry& e) -> uint32_t {
-    return e.kind == kNode ? 4u << e.level : e.kind == kLeaf ? 4u : e.kind == kSub ? 2u : 1u << e.level;
+    return e.kind == kNode ? 4u << e.level : e.kind <= kInline ? 4u : e.kind == kSub ? 2u : 1u << e.level;
   };
   // Root region.
   float t_root = t_lo, t_root_far = t_hi;
@@ -312,16 +321,17 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
     _mm_store_ps(tc, n_lo);
     _mm_store_ps(tc + 4, n_hi);
     // Which children exist (and how to reach them).
-    uint32_t exist = 0, full = 0;
+    uint32_t exist = 0, full = 0, inl = 0;
     uint64_t leaf_mask = 0;
     if (e.kind == kNode) {
       const uint32_t head = v.words[e.ref];
       exist = fmt::dag_child_mask(head);
       full = fmt::dag_full_mask(head);
-    } else if (e.kind == kLeaf) {
+      inl = fmt::dag_inline_mask(head);
+    } else if (e.kind <= kInline) {
       // Sub-block c of the 4^3 leaf occupies bits (2cx + 8cy + 32cz) + {0, 1, 4, 5, 16, 17, 20, 21}:
       // OR (AND) the eight together in three shifts, then gather the eight corner bits.
-      leaf_mask = v.leaves[e.ref];
+      leaf_mask = e.kind == kLeaf ? v.leaves[e.ref] : v.words[e.ref] | uint64_t(v.words[e.ref + 1]) << 32;
       uint64_t any = leaf_mask | leaf_mask >> 1, all = leaf_mask & leaf_mask >> 1;
       any |= any >> 4, all &= all >> 4;
       any |= any >> 16, all &= all >> 16;
@@ -339,8 +349,9 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
         // A whole set child: kSet, its size carried as log2 in `level`.
         stack[sp++] = {0, x, y, z, kSet, uint8_t(__builtin_ctz(half)), tc[ch]};
       } else if (e.kind == kNode) {
-        const uint32_t ref = v.words[e.ref + 1 + kPop8[exist & ~full & ((1u << ch) - 1)]];
-        stack[sp++] = {ref, x, y, z, e.level == 1 ? uint8_t(kLeaf) : uint8_t(kNode), uint8_t(e.level - 1), tc[ch]};
+        const uint32_t below = (1u << ch) - 1, at = e.ref + 1 + kPop8[exist & ~full & below] + kPop8[inl & below];
+        const uint8_t kind = e.level != 1 ? uint8_t(kNode) : (inl >> ch & 1) ? uint8_t(kInline) : uint8_t(kLeaf);
+        stack[sp++] = {kind == kInline ? at : v.words[at], x, y, z, kind, uint8_t(e.level - 1), tc[ch]};
       } else {  // a partly set 2x2x2 sub-block of a leaf: its 8 cell bits, x fastest
         const uint64_t t = leaf_mask >> ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
         const uint32_t bits = uint32_t((t & 0x3) | (t >> 2 & 0xC) | (t >> 12 & 0x30) | (t >> 14 & 0xC0));
