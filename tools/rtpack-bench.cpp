@@ -39,6 +39,7 @@
 
 #include "bench_convert.h"
 #include "bench_dag.h"
+#include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
 #include "oracle/compare.h"
@@ -50,7 +51,9 @@
 namespace {
 
 using namespace rtp;
-using Clock = std::chrono::steady_clock;
+using bench::Clock;
+using bench::best_of;
+using bench::seconds_since;
 using nlohmann::json;
 
 constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers (EmbreeOracle uses 256)
@@ -75,21 +78,6 @@ void progress(const std::string& s) {
 }
 void progress_done() {
   if (g_progress) std::fprintf(stderr, "\r\033[K");
-}
-
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// One warm-up run, then the best of `reps`.
-template <class F>
-double best_of(int reps, F&& f) {
-  f();
-  double best = std::numeric_limits<double>::infinity();
-  for (int r = 0; r < reps; ++r) {
-    const auto t0 = Clock::now();
-    f();
-    best = std::min(best, seconds_since(t0));
-  }
-  return best;
 }
 
 std::vector<std::string> split_list(const std::string& s) {
