@@ -80,7 +80,10 @@ void strip_draco(json& patched) {
   for (json& m : patched["meshes"]) {
     if (!m.is_object() || !m.contains("primitives") || !m["primitives"].is_array()) continue;
     for (json& p : m["primitives"])
-      if (draco_of(p)) p["extensions"].erase(kExt);
+      if (draco_of(p)) {
+        p["extensions"].erase(kExt);
+        p.erase("indices");  // tinygltf requires an indices accessor to have a bufferView: decode_draco sets it
+      }
   }
 }
 
@@ -131,6 +134,7 @@ void decode_draco(Document& doc) {
           }
         const int a = int(ind->get<int64_t>());
         attach(model, a, std::move(bytes), size_t(dm.num_faces()) * 3);
+        model.meshes[mi].primitives[pi].indices = a;
         model.accessors[size_t(a)].componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
       }
       for (auto it = (*d)["attributes"].begin(); it != (*d)["attributes"].end(); ++it) {

@@ -1,6 +1,7 @@
 // Node hierarchy -> instances and cameras. Transforms are composed in double and stored as float.
 #include <cfloat>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 #include "scene/gltf_internal.h"
@@ -83,9 +84,11 @@ std::string transform_pointer(const Document& doc, int node) {
 // 1e39 is a finite double but an infinite float), or the node is rejected by its pointer.
 void check_float_range(const Document& doc, int node, const Mat4d& world, const std::string& what) {
   for (double v : world.m)
-    if (!std::isfinite(v) || std::abs(v) > double(FLT_MAX))
-      fail_invalid(transform_pointer(doc, node) + ": " + what + " is not finite in float (entry " + std::to_string(v) +
-                   ")");
+    if (!std::isfinite(v) || std::abs(v) > double(FLT_MAX)) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.3g", v);
+      fail_invalid(transform_pointer(doc, node) + ": " + what + " is not finite in float (entry " + buf + ")");
+    }
 }
 
 void add_instance(Scene& out, uint32_t gltf_mesh, const Mat4d& world, int node, uint32_t gpu_instance) {
