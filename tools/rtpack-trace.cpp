@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/json_checked.h"
 #include "package/package.h"
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
@@ -42,18 +43,29 @@ std::vector<rtp::fmt::Ray> camera_rays(const rtp::PackageReader& r, int w, int h
   namespace fmt = rtp::fmt;
   const int64_t mi = r.find(fmt::ChunkKind::kMetadata, 0);
   nlohmann::json cam;
+  std::string label;
   if (mi >= 0) {
     const rtp::AlignedBytes b = r.read(size_t(mi));
     rtp::ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMetadata), rtp::chunk_label(r.toc()[size_t(mi)], size_t(mi)));
     const auto text = v.copy<uint8_t>(fmt::SectionType::kJson);
+    label = v.label();
+    rtp::jsonc::check_depth(std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), label + ": metadata ");
     const auto meta = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
-    if (meta.is_object() && meta.contains("cameras") && !meta["cameras"].empty()) cam = meta["cameras"][0];
+    if (meta.is_discarded() || !meta.is_object()) rtp::fail_invalid(label + ": metadata is not a JSON object");
+    if (const nlohmann::json* cams = rtp::jsonc::find(meta, "cameras")) {
+      if (!cams->is_array()) rtp::fail_invalid(label + ": /cameras: not an array");
+      if (!cams->empty()) cam = (*cams)[0];
+    }
   }
   double m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
   double yfov = 0.785398, aspect = double(w) / h;
-  if (cam.is_object() && cam.value("type", "") == "perspective") {
-    for (int i = 0; i < 12; ++i) m[i] = cam["world"][size_t(i)].get<double>();
-    yfov = cam.value("yfov", yfov);
+  const std::string cp = label + ": /cameras/0";  // the camera written by rtpack-convert (write_package.cpp)
+  if (!cam.is_null() && rtp::jsonc::get_string(cam, "type", cp) == "perspective") {
+    const nlohmann::json& world = rtp::jsonc::member(cam, "world", cp);
+    if (!world.is_array() || world.size() != 12) rtp::fail_invalid(cp + "/world: needs 12 numbers");
+    for (size_t i = 0; i < 12; ++i) m[i] = rtp::jsonc::as_number(world[i], cp + "/world/" + std::to_string(i));
+    yfov = rtp::jsonc::get_number(cam, "yfov", cp);
+    if (!(yfov > 0)) rtp::fail_invalid(cp + "/yfov: " + std::to_string(yfov) + " is not positive");
   } else {
     const auto& hd = r.header();
     double c[3], ext = 0;

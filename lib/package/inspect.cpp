@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "core/error.h"
+#include "core/json_checked.h"
 #include "package/chunk_io.h"
 
 namespace rtp {
@@ -79,6 +80,7 @@ void read_resident(Ctx& c) {
       switch (ChunkKind(kind)) {
         case ChunkKind::kMetadata: {
           const std::vector<uint8_t> text = v.copy<uint8_t>(SectionType::kJson);
+          jsonc::check_depth(std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), label + ": metadata ");
           res.meta = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
           if (res.meta.is_discarded() || !res.meta.is_object()) fail_invalid(label + ": metadata is not a JSON object");
           res.meta_ok = true;
@@ -352,15 +354,22 @@ nlohmann::json metadata_json(const Resident& res) {
                         "batching_points", "mesh_segments", "pieces", "dag"})
     if (m.contains(k)) out[k] = m[k];
   nlohmann::json cams = nlohmann::json::array();
-  if (m.contains("cameras") && m["cameras"].is_array())
-    for (const auto& cam : m["cameras"]) {
-      nlohmann::json j = {{"name", cam.value("name", "")}, {"type", cam.value("type", "")}};
-      if (cam.contains("world") && cam["world"].is_array() && cam["world"].size() == 12)
-        j["position"] = {cam["world"][3], cam["world"][7], cam["world"][11]};
+  // The cameras the converter wrote (write_package.cpp): every field checked, named by its pointer.
+  if (const nlohmann::json* cameras = jsonc::find(m, "cameras")) {
+    if (!cameras->is_array()) fail_invalid(res.meta_label + ": /cameras: not an array");
+    for (size_t i = 0; i < cameras->size(); ++i) {
+      const nlohmann::json& cam = (*cameras)[i];
+      const std::string cp = res.meta_label + ": /cameras/" + std::to_string(i);
+      nlohmann::json j = {{"name", jsonc::get_string(cam, "name", cp)}, {"type", jsonc::get_string(cam, "type", cp)}};
+      const nlohmann::json& world = jsonc::member(cam, "world", cp);
+      if (!world.is_array() || world.size() != 12) fail_invalid(cp + "/world: needs 12 numbers");
+      for (size_t k = 0; k < 12; ++k) jsonc::as_number(world[k], cp + "/world/" + std::to_string(k));
+      j["position"] = {world[3], world[7], world[11]};
       for (const char* k : {"yfov", "aspect_ratio", "xmag", "ymag", "znear", "zfar"})
-        if (cam.contains(k) && cam[k].is_number() && cam[k].get<double>() != 0) j[k] = cam[k];
+        if (jsonc::get_number(cam, k, 0.0, cp) != 0) j[k] = cam[k];
       cams.push_back(j);
     }
+  }
   out["cameras"] = cams;
   out["meshes"] = m.contains("mesh_names") && m["mesh_names"].is_array() ? m["mesh_names"].size() : 0;
   return out;

@@ -74,9 +74,11 @@ std::vector<double> read_components(const tinygltf::Model& m, int a, int compone
   if (ncomp != components || cbytes == 0)
     fail_invalid(ptr + ": accessor " + to_string(a) + " has " + to_string(ncomp) + " components, expected " + to_string(components));
   const size_t count = acc.count, elem = size_t(ncomp) * size_t(cbytes);
+  // The data is located (and bounds-checked) before the output is allocated from `count`.
+  Span s;
+  if (acc.bufferView >= 0) s = span_of(m, acc.bufferView, acc.byteOffset, count, elem, true, ptr);
   std::vector<double> out(count * size_t(components), 0.0);
   if (acc.bufferView >= 0) {
-    const Span s = span_of(m, acc.bufferView, acc.byteOffset, count, elem, true, ptr);
     for (size_t i = 0; i < count; ++i)
       for (int c = 0; c < components; ++c)
         out[i * size_t(components) + size_t(c)] =
@@ -105,14 +107,15 @@ std::vector<double> read_components(const tinygltf::Model& m, int a, int compone
 
 std::vector<Vec3f> read_vec3(const tinygltf::Model& m, int a, const std::string& ptr) {
   const tinygltf::Accessor& acc = accessor_at(m, a, ptr);
-  std::vector<Vec3f> out(acc.count);
   if (acc.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT && !acc.sparse.isSparse && acc.bufferView >= 0 &&
       acc.type == TINYGLTF_TYPE_VEC3) {  // fast path: plain float positions
     const Span s = span_of(m, acc.bufferView, acc.byteOffset, acc.count, 12, true, ptr);
+    std::vector<Vec3f> out(acc.count);
     for (size_t i = 0; i < acc.count; ++i) std::memcpy(&out[i], s.base + i * s.stride, 12);
     return out;
   }
   const std::vector<double> v = read_components(m, a, 3, ptr);
+  std::vector<Vec3f> out(acc.count);
   for (size_t i = 0; i < acc.count; ++i) out[i] = {float(v[3 * i]), float(v[3 * i + 1]), float(v[3 * i + 2])};
   return out;
 }
@@ -125,9 +128,10 @@ std::vector<uint32_t> read_indices(const tinygltf::Model& m, int a, const std::s
        ct != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
     fail_invalid(ptr + ": indices must be SCALAR unsigned byte/short/int (accessor " + to_string(a) + ")");
   const size_t cb = size_t(component_bytes(ct));
+  Span s;
+  if (acc.bufferView >= 0) s = span_of(m, acc.bufferView, acc.byteOffset, acc.count, cb, true, ptr);
   std::vector<uint32_t> out(acc.count, 0);
   if (acc.bufferView >= 0) {
-    const Span s = span_of(m, acc.bufferView, acc.byteOffset, acc.count, cb, true, ptr);
     for (size_t i = 0; i < acc.count; ++i) out[i] = decode_uint(s.base + i * s.stride, ct);
   }
   if (acc.sparse.isSparse) {

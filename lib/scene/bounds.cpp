@@ -83,7 +83,25 @@ struct PointTree {
   }
 };
 
+// World bounds of one instance of the mesh whose point tree is `t`.
+Aabb instance_bounds(const PointTree& t, const Instance& inst) {
+  Aabb acc;
+  if (t.pts.empty()) return acc;
+  for (int row = 0; row < 3; ++row) {
+    const Vec3d w{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)};
+    const double tr = inst.transform(row, 3);
+    acc.hi[row] = t.support(w) + tr;
+    acc.lo[row] = -t.support(w * -1.0) + tr;
+  }
+  return acc;
+}
+
 }  // namespace
+
+Aabb compute_instance_world_bounds(const Scene& scene, size_t instance) {
+  const Instance& inst = scene.instances[instance];
+  return instance_bounds(PointTree(scene.meshes[inst.mesh]), inst);
+}
 
 Aabb compute_world_bounds(const Scene& scene) {
   std::vector<PointTree> trees;
@@ -96,13 +114,11 @@ Aabb compute_world_bounds(const Scene& scene) {
       [&](const tbb::blocked_range<size_t>& r, Aabb acc) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const Instance& inst = scene.instances[i];
-          const PointTree& t = trees[inst.mesh];
-          if (t.pts.empty()) continue;
+          const Aabb b = instance_bounds(trees[inst.mesh], inst);
+          if (b.empty()) continue;
           for (int row = 0; row < 3; ++row) {
-            const Vec3d w{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)};
-            const double tr = inst.transform(row, 3);
-            acc.hi[row] = std::max(acc.hi[row], t.support(w) + tr);
-            acc.lo[row] = std::min(acc.lo[row], -t.support(w * -1.0) + tr);
+            acc.hi[row] = std::max(acc.hi[row], b.hi[row]);
+            acc.lo[row] = std::min(acc.lo[row], b.lo[row]);
           }
         }
         return acc;

@@ -1,7 +1,7 @@
 #pragma once
 // Internals of the glTF importer (not part of the public lib/scene interface).
 // The same configuration in every translation unit (tinygltf_impl.cpp adds the implementation).
-#define TINYGLTF_ENABLE_DRACO
+// Draco is decoded by draco.cpp, never by tinygltf (which trusts the payload's attribute ids).
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
@@ -42,6 +42,12 @@ void validate_json(const nlohmann::json& doc, const std::vector<int64_t>& buffer
 
 // EXT_meshopt_compression: decode every compressed bufferView into its fallback buffer.
 void decode_meshopt(Document& doc);
+
+// KHR_draco_mesh_compression: strip_draco removes the extension from the JSON handed to tinygltf;
+// decode_draco then decodes each compressed primitive with the draco library, checks its attribute
+// ids and component counts against the accessors, and points those accessors at the decoded data.
+void strip_draco(nlohmann::json& patched);
+void decode_draco(Document& doc);
 
 // Accessor reading with byteStride, normalization (KHR_mesh_quantization), sparse substitution.
 // `pointer` is the JSON pointer used in error messages. Every read is bounds-checked against the

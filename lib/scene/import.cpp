@@ -4,12 +4,43 @@
 
 #include <tbb/parallel_for.h>
 
+#include <cfloat>
+#include <cmath>
+#include <algorithm>
+#include <cstdio>
 #include <map>
 
 #include "core/error.h"
 #include "scene/gltf_internal.h"
 
 namespace rtp {
+namespace {
+
+// Everything downstream stores world coordinates as float: an instance whose triangles reach beyond
+// the float range (finite positions under a finite but huge transform) is rejected by its node.
+bool fits_float(const Aabb& b) {
+  for (int k = 0; k < 3; ++k)
+    if (!(std::abs(b.lo[k]) <= double(FLT_MAX)) || !(std::abs(b.hi[k]) <= double(FLT_MAX))) return false;
+  return true;
+}
+
+void check_float_bounds(const Scene& scene) {
+  if (scene.bounds.empty() || fits_float(scene.bounds)) return;
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const Aabb b = compute_instance_world_bounds(scene, i);
+    if (b.empty() || fits_float(b)) continue;
+    double worst = 0;
+    for (int k = 0; k < 3; ++k) worst = std::max({worst, std::abs(b.lo[k]), std::abs(b.hi[k])});
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", worst);
+    fail_invalid("/nodes/" + std::to_string(scene.instances[i].node) + ": world transform puts vertices of " +
+                 scene.meshes[scene.instances[i].mesh].name + " at |coordinate| " + buf +
+                 ", not finite in float");
+  }
+  fail_invalid("/nodes: world bounds are not finite in float");
+}
+
+}  // namespace
 
 Scene import_gltf(const std::string& path, const ImportOptions& options) {
   using std::to_string;
@@ -64,6 +95,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   if (options.on_warning)
     for (const auto& w : scene.warnings) options.on_warning(w);
   scene.bounds = compute_world_bounds(scene);
+  check_float_bounds(scene);
   return scene;
 }
 

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_checked.h"
 #include "scene/gltf_internal.h"
 
 namespace rtp::gltf {
@@ -157,10 +158,13 @@ Document load_document(const std::string& path) {
     json_text = bytes;
   }
 
+  jsonc::check_depth(json_text, "");
   try {
     doc.json = json::parse(json_text);
   } catch (const json::parse_error& e) {
     fail_invalid(std::string("invalid JSON (truncated file?) at byte ") + std::to_string(e.byte) + ": " + e.what());
+  } catch (const json::exception& e) {  // e.g. a number too large for a double
+    fail_invalid(std::string("invalid JSON: ") + e.what());
   }
   if (!doc.json.is_object()) fail_invalid("/: the glTF document is not a JSON object");
   const json& j = doc.json;
@@ -188,9 +192,9 @@ Document load_document(const std::string& path) {
       if (!b.is_object() || !b.contains("byteLength") || !b["byteLength"].is_number_unsigned())
         fail_invalid(ptr + "/byteLength: missing or not a non-negative integer");
       const uint64_t declared = b["byteLength"].get<uint64_t>();
-      const bool is_fallback = b.contains("extensions") && b["extensions"].is_object() &&
-                               b["extensions"].contains("EXT_meshopt_compression") &&
-                               b["extensions"]["EXT_meshopt_compression"].value("fallback", false);
+      const json* ext = jsonc::find(b, "extensions");
+      const json* mo = ext ? jsonc::find(*ext, "EXT_meshopt_compression") : nullptr;
+      const bool is_fallback = mo && jsonc::get_bool(*mo, "fallback", false, ptr + "/extensions/EXT_meshopt_compression");
       if (b.contains("uri") && !b["uri"].is_string()) fail_invalid(ptr + "/uri: not a string");
       const std::string uri = b.value("uri", std::string());
       int64_t real = -1;
@@ -228,6 +232,7 @@ Document load_document(const std::string& path) {
   patched.erase("images");
   patched.erase("textures");
   patched.erase("samplers");
+  strip_draco(patched);
   for (int i : fallback) {
     patched["buffers"][i]["uri"] = "data:application/octet-stream;base64,AA==";
     patched["buffers"][i]["byteLength"] = 1;
@@ -267,8 +272,8 @@ Document load_document(const std::string& path) {
     while (!err.empty() && err.back() == '\n') err.pop_back();
     fail_invalid("glTF parse failed: " + err);
   }
-  for (int i : fallback) doc.model.buffers[size_t(i)].data.assign(j["buffers"][i]["byteLength"].get<size_t>(), 0);
-  decode_meshopt(doc);
+  decode_meshopt(doc);  // also sizes the fallback buffers
+  decode_draco(doc);
   return doc;
 }
 

@@ -1,5 +1,7 @@
 // Node hierarchy -> instances and cameras. Transforms are composed in double and stored as float.
+#include <cfloat>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 #include "scene/gltf_internal.h"
@@ -68,6 +70,27 @@ void add_camera(const Document& doc, int node, const Mat4d& global, Scene& out) 
   out.cameras.push_back(cam);
 }
 
+// The JSON pointer of the property that defines node `node`'s local transform.
+std::string transform_pointer(const Document& doc, int node) {
+  const std::string np = "/nodes/" + to_string(node);
+  const tinygltf::Node& n = doc.model.nodes[size_t(node)];
+  if (n.matrix.size() == 16) return np + "/matrix";
+  if (!n.scale.empty()) return np + "/scale";
+  if (!n.translation.empty()) return np + "/translation";
+  return np;
+}
+
+// World transforms are stored as float: every entry must be finite there too (a matrix entry of
+// 1e39 is a finite double but an infinite float), or the node is rejected by its pointer.
+void check_float_range(const Document& doc, int node, const Mat4d& world, const std::string& what) {
+  for (double v : world.m)
+    if (!std::isfinite(v) || std::abs(v) > double(FLT_MAX)) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.3g", v);
+      fail_invalid(transform_pointer(doc, node) + ": " + what + " is not finite in float (entry " + buf + ")");
+    }
+}
+
 void add_instance(Scene& out, uint32_t gltf_mesh, const Mat4d& world, int node, uint32_t gpu_instance) {
   Instance inst;
   inst.mesh = gltf_mesh;
@@ -111,7 +134,9 @@ void add_gpu_instances(const Document& doc, int node, const Mat4d& global, Scene
     for (int k = 0; k < 3; ++k)
       if (!std::isfinite(ti[k]) || !std::isfinite(si[k]))
         fail_invalid(ep + ": instance " + to_string(i) + " has a non-finite TRANSLATION/SCALE");
-    add_instance(out, mesh, global * Mat4d::from_trs(ti, qi, si), node, uint32_t(i));
+    const Mat4d world = global * Mat4d::from_trs(ti, qi, si);
+    check_float_range(doc, node, world, "world transform of EXT_mesh_gpu_instancing instance " + to_string(i));
+    add_instance(out, mesh, world, node, uint32_t(i));
   }
 }
 
@@ -140,6 +165,7 @@ void walk_nodes(const Document& doc, int scene, Scene& out) {
     const Mat4d global = item.parent * local_matrix(n);
     for (double v : global.m)
       if (!std::isfinite(v)) fail_invalid("/nodes/" + to_string(item.node) + ": transform is not finite");
+    check_float_range(doc, item.node, global, "world transform");
     const bool gpu = doc.json["nodes"][size_t(item.node)].contains("extensions") &&
                      doc.json["nodes"][size_t(item.node)]["extensions"].contains("EXT_mesh_gpu_instancing");
     if (n.mesh >= 0) {

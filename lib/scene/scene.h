@@ -79,5 +79,7 @@ struct Scene {
 // Exact world bounds of all instances: for every instance, the extreme vertices along each world axis
 // of the stored transform (branch and bound over a per-mesh point tree, not a transformed box).
 Aabb compute_world_bounds(const Scene& scene);
+// The same for one instance (builds that mesh's point tree: for diagnostics, not for loops).
+Aabb compute_instance_world_bounds(const Scene& scene, size_t instance);
 
 }  // namespace rtp

@@ -1,9 +1,12 @@
 // Validation of the glTF JSON before tinygltf sees it: every reference in range, every accessor and
 // bufferView inside its data, no node cycles. Messages name the JSON pointer (as gltf-validator does).
+#include <algorithm>
+#include <climits>
 #include <string>
 #include <vector>
 
 #include "core/error.h"
+#include "core/json_checked.h"
 #include "scene/gltf_internal.h"
 
 namespace rtp::gltf {
@@ -13,6 +16,14 @@ using nlohmann::json;
 using std::to_string;
 
 const json kEmptyArray = json::array();
+
+// meshoptimizer's codecs cannot expand data more than this: the vertex codec spends at least 2 header
+// bits per 16-byte group of one byte lane (64x), the index codec a code byte per triangle (12x), the
+// index sequence codec a byte per index (4x). A larger claim is rejected before anything is allocated.
+constexpr uint64_t kMeshoptMaxExpansion = 64;
+
+// Floor of the byte budget of accessors without a bufferView (docs/exit-codes.md).
+constexpr uint64_t kMaxUnbackedBytes = uint64_t(1) << 24;
 
 const json& array_of(const json& root, const char* name) {
   if (!root.contains(name)) return kEmptyArray;
@@ -80,7 +91,11 @@ void check_span(const json& views, int64_t view, uint64_t offset, uint64_t count
                  " bytes but bufferView " + to_string(view) + " has " + to_string(len) + " (accessor overruns its bufferView)");
 }
 
-void validate_accessors(const json& accessors, const json& views) {
+// Accessors without a bufferView are zero-filled (plus sparse values): they may not describe more bytes
+// than the file's buffers hold, or kMaxUnbackedBytes, whichever is larger (a 1 KB file must not ask
+// for gigabytes). Accessors a Draco primitive decodes into are sized by the payload, not by `count`.
+void validate_accessors(const json& accessors, const json& views, uint64_t backed_bytes,
+                        const std::vector<bool>& draco_decoded) {
   for (size_t i = 0; i < accessors.size(); ++i) {
     const json& a = accessors[i];
     const std::string ptr = "/accessors/" + to_string(i);
@@ -93,8 +108,16 @@ void validate_accessors(const json& accessors, const json& views) {
     if (count == 0) fail_invalid(ptr + "/count: missing or zero");
     const uint64_t elem = uint64_t(component_size(a["componentType"].get<int64_t>())) *
                           uint64_t(components_of(a["type"].get<std::string>()));
-    if (check_ref(a, "bufferView", views.size(), ptr, "bufferView", false))
+    if (check_ref(a, "bufferView", views.size(), ptr, "bufferView", false)) {
       check_span(views, a["bufferView"].get<int64_t>(), get_u64(a, "byteOffset", 0, ptr), count, elem, true, ptr);
+    } else if (!draco_decoded[i]) {
+      const uint64_t limit = std::max(kMaxUnbackedBytes, backed_bytes);
+      if (count > limit / elem)
+        fail_invalid(ptr + "/count: " + to_string(count) + " elements without a bufferView would take " +
+                     (count > ~uint64_t(0) / elem ? std::string("more than 2^64") : to_string(count * elem)) +
+                     " bytes; the file's buffers hold " + to_string(backed_bytes) + " (limit: that or " +
+                     to_string(kMaxUnbackedBytes) + " bytes, whichever is larger)");
+    }
     if (a.contains("sparse")) {
       const json& s = a["sparse"];
       const std::string sp = ptr + "/sparse";
@@ -105,7 +128,7 @@ void validate_accessors(const json& accessors, const json& views) {
       if (sc == 0 || sc > count) fail_invalid(sp + "/count: " + to_string(sc) + " not in 1.." + to_string(count));
       const json& si = s["indices"];
       check_ref(si, "bufferView", views.size(), sp + "/indices", "bufferView", true);
-      const int64_t ict = si.value("componentType", int64_t(0));
+      const int64_t ict = jsonc::get_int(si, "componentType", sp + "/indices");
       if (ict != 5121 && ict != 5123 && ict != 5125) fail_invalid(sp + "/indices/componentType: invalid");
       check_span(views, si["bufferView"].get<int64_t>(), get_u64(si, "byteOffset", 0, sp + "/indices"), sc,
                  uint64_t(component_size(ict)), false, sp + "/indices");
@@ -131,7 +154,7 @@ void validate_meshes(const json& meshes, size_t n_accessors, size_t n_views) {
       for (auto it = pr["attributes"].begin(); it != pr["attributes"].end(); ++it)
         check_ref(pr["attributes"], it.key().c_str(), n_accessors, pp + "/attributes", "accessor", true);
       check_ref(pr, "indices", n_accessors, pp, "accessor", false);
-      const int64_t mode = pr.value("mode", int64_t(4));
+      const int64_t mode = jsonc::get_int(pr, "mode", 4, pp);
       if (mode < 0 || mode > 6) fail_invalid(pp + "/mode: " + to_string(mode) + " is not a glTF primitive mode");
       if (pr.contains("extensions") && pr["extensions"].is_object() &&
           pr["extensions"].contains("KHR_draco_mesh_compression")) {
@@ -141,12 +164,35 @@ void validate_meshes(const json& meshes, size_t n_accessors, size_t n_views) {
           fail_invalid(dp + "/attributes: missing");
         check_ref(d, "bufferView", n_views, dp, "bufferView", true);
         if (!pr["attributes"].contains("POSITION")) fail_invalid(dp + ": compressed primitive has no POSITION accessor");
+        for (auto it = d["attributes"].begin(); it != d["attributes"].end(); ++it) {
+          const std::string ap = jsonc::child(dp + "/attributes", it.key());
+          if (jsonc::as_int(it.value(), ap) < 0 || it.value().get<int64_t>() > INT32_MAX)
+            fail_invalid(ap + ": Draco attribute id " + it.value().dump() + " out of range");
+          if (!pr["attributes"].contains(it.key()))
+            fail_invalid(ap + ": Draco attribute has no accessor in " + pp + "/attributes");
+        }
       }
     }
   }
 }
 
-void validate_views(const json& views, const std::vector<int64_t>& buffer_sizes) {
+// Which accessors a KHR_draco_mesh_compression primitive decodes into (its indices and the attributes
+// its Draco extension lists). Runs after validate_meshes (references are in range).
+std::vector<bool> draco_accessors(const json& meshes, size_t n_accessors) {
+  std::vector<bool> out(n_accessors, false);
+  for (const json& m : meshes)
+    for (const json& pr : m["primitives"]) {
+      const json* ext = jsonc::find(pr, "extensions");
+      const json* d = ext ? jsonc::find(*ext, "KHR_draco_mesh_compression") : nullptr;
+      if (!d) continue;
+      if (const json* i = jsonc::find(pr, "indices")) out[i->get<size_t>()] = true;
+      for (auto it = (*d)["attributes"].begin(); it != (*d)["attributes"].end(); ++it)
+        out[pr["attributes"][it.key()].get<size_t>()] = true;
+    }
+  return out;
+}
+
+void validate_views(const json& views, const std::vector<int64_t>& buffer_sizes, const std::vector<bool>& fallback) {
   for (size_t v = 0; v < views.size(); ++v) {
     const json& bv = views[v];
     const std::string ptr = "/bufferViews/" + to_string(v);
@@ -166,13 +212,23 @@ void validate_views(const json& views, const std::vector<int64_t>& buffer_sizes)
       const std::string ep = ptr + "/extensions/EXT_meshopt_compression";
       if (!e.is_object()) fail_invalid(ep + ": not an object");
       check_ref(e, "buffer", buffer_sizes.size(), ep, "buffer", true);
-      const uint64_t eo = get_u64(e, "byteOffset", 0, ep), el = get_u64(e, "byteLength", 0, ep);
-      const uint64_t stride = get_u64(e, "byteStride", 0, ep), count = get_u64(e, "count", 0, ep);
+      const uint64_t eo = jsonc::get_uint(e, "byteOffset", 0, ep), el = jsonc::get_uint(e, "byteLength", ep);
+      const uint64_t stride = jsonc::get_uint(e, "byteStride", ep), count = jsonc::get_uint(e, "count", ep);
+      const std::string mode = jsonc::get_string(e, "mode", ep);
+      if (mode != "ATTRIBUTES" && mode != "TRIANGLES" && mode != "INDICES")
+        fail_invalid(ep + "/mode: unknown meshopt mode '" + mode + "'");
+      jsonc::get_string(e, "filter", "NONE", ep);
       const int64_t eb = e["buffer"].get<int64_t>();
       if (eo + el < eo || eo + el > uint64_t(buffer_sizes[size_t(eb)]))
         fail_invalid(ep + ": compressed bytes overrun buffer " + to_string(eb));
       if (stride == 0 || stride > 256 || count == 0 || count > (uint64_t(1) << 32) || stride * count != len)
         fail_invalid(ep + ": count " + to_string(count) + " × byteStride " + to_string(stride) + " != byteLength " + to_string(len));
+      if (len > kMeshoptMaxExpansion * el)
+        fail_invalid(ep + ": meshopt cannot decode " + to_string(len) + " bytes from " + to_string(el) +
+                     " compressed bytes (at most " + to_string(kMeshoptMaxExpansion) + "x expansion)");
+    } else if (fallback[size_t(bv["buffer"].get<int64_t>())]) {
+      fail_invalid(ptr + ": refers to meshopt fallback buffer " + to_string(bv["buffer"].get<int64_t>()) +
+                   " but is not EXT_meshopt_compression-compressed (the fallback buffer has no data)");
     }
   }
 }
@@ -251,9 +307,20 @@ void validate_cameras(const json& cameras) {
   for (size_t i = 0; i < cameras.size(); ++i) {
     const json& c = cameras[i];
     const std::string ptr = "/cameras/" + to_string(i);
-    const std::string type = c.value("type", std::string());
+    const std::string type = jsonc::get_string(c, "type", ptr);
     if (type != "perspective" && type != "orthographic") fail_invalid(ptr + "/type: must be perspective or orthographic");
     if (!c.contains(type) || !c[type].is_object()) fail_invalid(ptr + "/" + type + ": missing");
+    // glTF 2.0 §5.12/5.13: the required lens parameters, as numbers.
+    const json& lens = c[type];
+    const std::string lp = ptr + "/" + type;
+    if (type == "perspective") {
+      if (!(jsonc::get_number(lens, "yfov", lp) > 0)) fail_invalid(lp + "/yfov: must be > 0");
+      jsonc::get_number(lens, "znear", lp);
+      jsonc::get_number(lens, "aspectRatio", 0, lp);
+      jsonc::get_number(lens, "zfar", 0, lp);
+    } else {
+      for (const char* k : {"xmag", "ymag", "znear", "zfar"}) jsonc::get_number(lens, k, lp);
+    }
   }
 }
 
@@ -266,9 +333,20 @@ void validate_json(const json& root, const std::vector<int64_t>& buffer_sizes) {
   const json& nodes = array_of(root, "nodes");
   const json& cameras = array_of(root, "cameras");
   const json& scenes = array_of(root, "scenes");
-  validate_views(views, buffer_sizes);
-  validate_accessors(accessors, views);
+  const json& buffers = array_of(root, "buffers");
+  // EXT_meshopt_compression fallback buffers hold no data of their own.
+  std::vector<bool> fallback(buffer_sizes.size(), false);
+  uint64_t backed_bytes = 0;
+  for (size_t b = 0; b < buffer_sizes.size() && b < buffers.size(); ++b) {
+    const std::string bp = "/buffers/" + to_string(b);
+    if (const json* ext = jsonc::find(buffers[b], "extensions"))
+      if (const json* e = jsonc::find(jsonc::object(*ext, bp + "/extensions"), "EXT_meshopt_compression"))
+        fallback[b] = jsonc::get_bool(*e, "fallback", false, bp + "/extensions/EXT_meshopt_compression");
+    if (!fallback[b]) backed_bytes += uint64_t(buffer_sizes[b]);
+  }
+  validate_views(views, buffer_sizes, fallback);
   validate_meshes(meshes, accessors.size(), views.size());
+  validate_accessors(accessors, views, backed_bytes, draco_accessors(meshes, accessors.size()));
   validate_cameras(cameras);
   validate_nodes(root, nodes, meshes.size(), cameras.size(), accessors.size());
   if (root.contains("scene")) check_ref(root, "scene", scenes.size(), "", "scene", false);
