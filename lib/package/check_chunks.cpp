@@ -18,59 +18,48 @@ bool finite_box(float lo, float hi) { return std::isfinite(lo) && std::isfinite(
 
 // A wide BVH (mesh, piece or instance level): nodes [0, nn), `root` a ChildRef relative to them, leaves
 // ranges inside [0, items). `seen` has >= nn zero bytes and is left zeroed. `what` prefixes messages.
-template <int W>
+template <int W, class What>
 void check_wide_bvh(const fmt::WideNode<W>* nodes, uint64_t nn, uint32_t root, uint64_t items, std::vector<uint8_t>& seen,
-                    const std::string& what, const char* item_name) {
+                    const What& what, const char* item_name) {
   using fmt::ChildRef;
   auto leaf_ok = [&](uint32_t ref) { return range_inside(ChildRef::first_block(ref), ChildRef::block_count(ref), items); };
   auto leaf_msg = [&](uint32_t ref) {
     return item_name + std::string("s ") + str(ChildRef::first_block(ref)) + ".." +
            str(uint64_t(ChildRef::first_block(ref)) + ChildRef::block_count(ref) - 1) + " out of range (" + str(items) + ")";
   };
-  bool failed = false;
-  std::string msg;
   if (ChildRef::is_leaf(root)) {
-    if (!leaf_ok(root)) fail_invalid(what + ": root leaf: " + leaf_msg(root));
+    if (!leaf_ok(root)) fail_invalid(what() + ": root leaf: " + leaf_msg(root));
   } else if (!ChildRef::is_empty(root)) {
-    if (root >= nn) fail_invalid(what + ": root node " + str(root) + " out of range (" + str(nn) + " nodes)");
+    if (root >= nn) fail_invalid(what() + ": root node " + str(root) + " out of range (" + str(nn) + " nodes)");
     seen[root] = 1;
   }
-  for (uint64_t i = 0; i < nn && !failed; ++i) {
+  // The hot loop only tests; a message is built once something failed (the first failure is named).
+  std::string msg;
+  for (uint64_t i = 0; i < nn && msg.empty(); ++i) {
     const fmt::WideNode<W>& n = nodes[i];
-    for (int l = 0; l < W && !failed; ++l) {
+    for (int l = 0; l < W && msg.empty(); ++l) {
       const uint32_t c = n.child[l];
-      const std::string where = what + ": node " + str(i) + " lane " + str(uint64_t(l));
-      for (int o = 0; o < 8; ++o)
-        if (n.order[o][l] >= W) {
-          msg = where + ": octant order " + str(o) + " names lane " + str(n.order[o][l]) + " (width " + str(W) + ")";
-          failed = true;
-        }
-      if (failed || ChildRef::is_empty(c)) continue;
-      for (int a = 0; a < 3; ++a)
-        if (!finite_box(n.lo[a][l], n.hi[a][l])) {
-          msg = where + ": box not finite or inverted on axis " + str(uint64_t(a));
-          failed = true;
-          break;
-        }
-      if (failed) continue;
+      auto where = [&] { return what() + ": node " + str(i) + " lane " + str(uint64_t(l)); };
+      for (int o = 0; o < 8 && msg.empty(); ++o)
+        if (n.order[o][l] >= W)
+          msg = where() + ": octant order " + str(uint64_t(o)) + " names lane " + str(n.order[o][l]) + " (width " + str(W) + ")";
+      if (!msg.empty() || ChildRef::is_empty(c)) continue;
+      for (int a = 0; a < 3 && msg.empty(); ++a)
+        if (!finite_box(n.lo[a][l], n.hi[a][l])) msg = where() + ": box not finite or inverted on axis " + str(uint64_t(a));
+      if (!msg.empty()) continue;
       if (ChildRef::is_leaf(c)) {
-        if (!leaf_ok(c)) msg = where + ": leaf " + leaf_msg(c), failed = true;
-        continue;
-      }
-      if (c >= nn) {
-        msg = where + ": child " + str(c) + " out of range (" + str(nn) + " nodes)";
-        failed = true;
+        if (!leaf_ok(c)) msg = where() + ": leaf " + leaf_msg(c);
+      } else if (c >= nn) {
+        msg = where() + ": child " + str(c) + " out of range (" + str(nn) + " nodes)";
       } else if (c <= i) {
-        msg = where + ": child " + str(c) + " is not after its parent";
-        failed = true;
+        msg = where() + ": child " + str(c) + " is not after its parent";
       } else if (seen[c]++) {
-        msg = where + ": child " + str(c) + " is referenced a second time";
-        failed = true;
+        msg = where() + ": child " + str(c) + " is referenced a second time";
       }
     }
   }
   std::fill(seen.begin(), seen.begin() + std::ptrdiff_t(nn), uint8_t(0));
-  if (failed) fail_invalid(msg);
+  if (!msg.empty()) fail_invalid(msg);
 }
 
 // The entries' BVHs of a geometry chunk. `prims`: also every leaf prim < the entry's triangles.
@@ -80,15 +69,15 @@ void check_entries(const GeometrySections<W, B>& g, const std::string& label, co
   std::vector<uint8_t> seen;
   for (uint64_t k = 0; k < g.n_entries; ++k) {
     const fmt::MeshEntry& e = g.entries[k];
-    const std::string what = label + ": " + entry_name + " " + str(e.id) + " (entry " + str(k) + ")";
+    auto what = [&] { return label + ": " + entry_name + " " + str(e.id) + " (entry " + str(k) + ")"; };
     if (!range_inside(e.node_first, e.node_count, g.n_nodes))
-      fail_invalid(what + ": node_first " + str(e.node_first) + " + node_count " + str(e.node_count) + " outside the " +
+      fail_invalid(what() + ": node_first " + str(e.node_first) + " + node_count " + str(e.node_count) + " outside the " +
                    str(g.n_nodes) + " nodes");
     if (!range_inside(e.block_first, e.block_count, g.n_blocks))
-      fail_invalid(what + ": block_first " + str(e.block_first) + " + block_count " + str(e.block_count) + " outside the " +
+      fail_invalid(what() + ": block_first " + str(e.block_first) + " + block_count " + str(e.block_count) + " outside the " +
                    str(g.n_blocks) + " blocks");
     nodes_total += e.node_count;
-    if (nodes_total > g.n_nodes) fail_invalid(what + ": node ranges of the entries overlap (more nodes than the section holds)");
+    if (nodes_total > g.n_nodes) fail_invalid(what() + ": node ranges of the entries overlap (more nodes than the section holds)");
     if (seen.size() < e.node_count) seen.assign(e.node_count, 0);
     check_wide_bvh<W>(g.nodes + e.node_first, e.node_count, e.root, e.block_count, seen, what, "block");
     if (!prims) continue;
@@ -96,7 +85,7 @@ void check_entries(const GeometrySections<W, B>& g, const std::string& label, co
     for (uint64_t b = 0; b < e.block_count; ++b)
       for (int l = 0; l < B; ++l)
         if (blocks[b].prim[l] >= e.triangles)
-          fail_invalid(what + ": block " + str(b) + " lane " + str(uint64_t(l)) + ": prim " + str(blocks[b].prim[l]) +
+          fail_invalid(what() + ": block " + str(b) + " lane " + str(uint64_t(l)) + ": prim " + str(blocks[b].prim[l]) +
                        " out of range (" + str(e.triangles) + " triangles)");
   }
 }
@@ -120,8 +109,8 @@ void check_top_level(const fmt::TopNode* nodes, uint64_t count, uint64_t points,
   for (uint64_t n = 0; n < count; ++n)
     for (int l = 0; l < 4; ++l) {
       const uint32_t c = nodes[n].child[l];
-      const std::string where = label + ": node " + str(n) + " lane " + str(uint64_t(l));
       if (c == TopNode::kEmpty) continue;
+      const std::string where = label + ": node " + str(n) + " lane " + str(uint64_t(l));  // top level: small
       for (int a = 0; a < 3; ++a)
         if (!finite_box(nodes[n].lo[a][l], nodes[n].hi[a][l]))
           fail_invalid(where + ": box not finite or inverted on axis " + str(uint64_t(a)));
@@ -145,13 +134,13 @@ void check_top_level(const fmt::TopNode* nodes, uint64_t count, uint64_t points,
 void check_point_descs(const fmt::BatchingPointDesc* descs, uint64_t count, uint64_t segment_refs, const std::string& label) {
   for (uint64_t p = 0; p < count; ++p) {
     const fmt::BatchingPointDesc& d = descs[p];
-    const std::string what = label + ": batching point " + str(p);
-    if (d.chunk_id != p) fail_invalid(what + ": chunk_id " + str(d.chunk_id) + " is not its index");
+    auto what = [&] { return label + ": batching point " + str(p); };
+    if (d.chunk_id != p) fail_invalid(what() + ": chunk_id " + str(d.chunk_id) + " is not its index");
     if (!range_inside(d.segment_first, d.segment_count, segment_refs))
-      fail_invalid(what + ": segment_first " + str(d.segment_first) + " + segment_count " + str(d.segment_count) +
+      fail_invalid(what() + ": segment_first " + str(d.segment_first) + " + segment_count " + str(d.segment_count) +
                    " outside the " + str(segment_refs) + " segment references");
     for (int a = 0; a < 3; ++a)
-      if (!finite_box(d.lo[a], d.hi[a])) fail_invalid(what + ": bounds not finite or inverted on axis " + str(uint64_t(a)));
+      if (!finite_box(d.lo[a], d.hi[a])) fail_invalid(what() + ": bounds not finite or inverted on axis " + str(uint64_t(a)));
   }
 }
 
@@ -165,15 +154,15 @@ void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t sour
                       uint64_t segments, const std::string& label) {
   for (uint64_t m = 0; m < count; ++m) {
     const fmt::MeshInfo& mi = meshes[m];
-    const std::string what = label + ": mesh " + str(m);
+    auto what = [&] { return label + ": mesh " + str(m); };
     if (!range_inside(mi.source_prim_first, mi.source_prim_count, source_prims))
-      fail_invalid(what + ": source_prim_first " + str(mi.source_prim_first) + " + source_prim_count " +
+      fail_invalid(what() + ": source_prim_first " + str(mi.source_prim_first) + " + source_prim_count " +
                    str(mi.source_prim_count) + " outside the source map's " + str(source_prims) + " primitives");
     if (!range_inside(mi.source_tri_first, mi.triangles, source_tris))
-      fail_invalid(what + ": source_tri_first " + str(mi.source_tri_first) + " + triangles " + str(mi.triangles) +
+      fail_invalid(what() + ": source_tri_first " + str(mi.source_tri_first) + " + triangles " + str(mi.triangles) +
                    " outside the source map's " + str(source_tris) + " triangles");
     if (mi.segment != 0xFFFFFFFFu && segments != kUnknownCount && mi.segment >= segments)
-      fail_invalid(what + ": segment " + str(mi.segment) + " out of range (" + str(segments) + " mesh segments)");
+      fail_invalid(what() + ": segment " + str(mi.segment) + " out of range (" + str(segments) + " mesh segments)");
   }
 }
 
@@ -206,7 +195,8 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
                  str(te.block_first) + "+" + str(te.block_count) + ") disagrees with its sections (" + str(p.n_instance_nodes) +
                  " nodes, " + str(p.n_instance_ids) + " ids)");
   std::vector<uint8_t> seen(p.n_instance_nodes, 0);
-  check_wide_bvh<W>(p.instance_nodes, p.n_instance_nodes, te.root, p.n_instance_ids, seen, L + ": instance BVH", "instance id");
+  check_wide_bvh<W>(p.instance_nodes, p.n_instance_nodes, te.root, p.n_instance_ids, seen, [&] { return L + ": instance BVH"; },
+                    "instance id");
   std::vector<uint8_t> used(p.n_records, 0);
   for (uint64_t k = 0; k < p.n_instance_ids; ++k) {
     const uint32_t id = p.instance_ids[k];
