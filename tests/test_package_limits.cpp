@@ -148,6 +148,14 @@ TEST_F(Limits, MeshTableSourceRangeThatWrapsIsRejected) {
   expect_inspect_problem(p, {label, "mesh 1: source_tri_first 18446744073709551613 + triangles"}, true);
   const ToolRun t = run(tool("rtpack-inspect") + " --verify " + p, dir);
   EXPECT_EQ(t.code, 3) << t.out << t.err;
+  // A declared triangle count of 2^40 (a 1 TB coverage table in --verify): not backed by the source map.
+  const std::string q = copy(bases().forest);
+  patch_chunk(q, index, [](uint8_t* chunk, size_t) {
+    section<fmt::MeshInfo>(chunk, SectionType::kMeshTable)[0].triangles = uint64_t(1) << 40;
+  });
+  const ToolRun u = run(tool("rtpack-inspect") + " --verify " + q, dir);
+  EXPECT_EQ(u.code, 3) << u.out << u.err;
+  EXPECT_NE(u.out.find(label + ": mesh 0: source_tri_first 0 + triangles 1099511627776 outside"), std::string::npos) << u.out;
 }
 
 TEST_F(Limits, VerifyStopsEarlyOnAChangedMeshEntryId) {
