@@ -17,6 +17,7 @@
 
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
+#include "formats/dag.h"
 #include "formats/top_level.h"
 #include "hostile_package.h"
 
@@ -282,6 +283,15 @@ TEST_F(Hostile, TopLevelDuplicatedLeafAndCycle) {
     });
     expect_everywhere(p, {label, "node 0 lane", "child 0 is not after its parent"});
   }
+}
+
+TEST_F(Hostile, CullingGridIsCheckedAtDecode) {  // voxel::check_dags runs when the tracer loads, not only in --verify
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0);
+  const std::string pool = chunk_of(p, fmt::ChunkKind::kDagPool, 0).second;
+  patch_chunk(p, index, [](uint8_t* chunk, size_t) { section<fmt::DagGrid>(chunk, SectionType::kPointGrids)[2].resolution = 48; });
+  expect_tracer_rejects(p, {pool, "culling DAG of batching point 2: resolution 48 is not a power of two"});
+  expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"}, true);
 }
 
 }  // namespace
