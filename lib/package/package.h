@@ -60,7 +60,7 @@ class PackageWriter {
 
 class PackageReader {
  public:
-  // Opens and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
+  // Opens (never blocking: a FIFO or any other non-regular file is rejected, exit 3) and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
   // and 4 KiB aligned). Throws Error(kInputInvalid) naming what is wrong; kInputIo when unreadable.
   explicit PackageReader(const std::string& path, bool direct_io = false);
   ~PackageReader();
@@ -78,6 +78,14 @@ class PackageReader {
   AlignedBytes read(size_t index) const;
   // Reads and checks the CRC only (no decompression).
   void verify(size_t index) const;
+  // The offset of the first non-zero byte of [offset, offset + size) of the file, or kAllZero.
+  static constexpr uint64_t kAllZero = ~uint64_t(0);
+  uint64_t first_nonzero(uint64_t offset, uint64_t size) const;
+
+  // A chunk's raw_size is at most kMaxChunkRatio * stored_size + kMaxChunkSlack (formats/SPEC.md §3):
+  // checked before any memory is committed. The writer's chunks stay far below (rtpack-inspect: ratio).
+  static constexpr uint64_t kMaxChunkRatio = 1024;
+  static constexpr uint64_t kMaxChunkSlack = uint64_t(1) << 20;
 
  private:
   AlignedBytes read_stored(size_t index) const;
