@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "package/package.h"
 
 namespace rtp {
@@ -46,13 +47,9 @@ std::string chunk_label(const fmt::TocEntry& e, size_t i) {
 }
 
 PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(path) {
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | (direct_io ? O_DIRECT : 0));
-  if (fd_ < 0 && direct_io && errno == EINVAL) fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);  // no O_DIRECT here
-  else direct_ = direct_io;
-  if (fd_ < 0) throw Error(ExitCode::kInputIo, "cannot open '" + path + "': " + std::strerror(errno));
-  struct stat st{};
-  if (::fstat(fd_, &st) != 0) throw Error(ExitCode::kInputIo, "cannot stat '" + path + "'");
-  file_size_ = uint64_t(st.st_size);
+  // A regular file only (a directory, FIFO or device gets a clear message; a FIFO never blocks).
+  fd_ = open_input_file(path, "", direct_io ? O_DIRECT : 0, &file_size_);
+  direct_ = direct_io && (::fcntl(fd_, F_GETFL) & O_DIRECT);  // false where O_DIRECT is refused
   if (file_size_ < fmt::kAlignment)
     fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
                  std::to_string(fmt::kAlignment) + "-byte header block");
