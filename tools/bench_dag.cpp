@@ -57,6 +57,7 @@
 #include "bench_convert.h"
 #include "cluster/cluster.h"
 #include "core/error.h"
+#include "core/utf8.h"
 #include "core/progress.h"
 #include "formats/chunk.h"
 #include "mesh/prepare.h"
@@ -102,7 +103,7 @@ void note(const char* fmt_, ...) {
   va_end(ap);
 }
 
-std::string base_name(const std::string& path) { return fs::path(path).filename().string(); }
+std::string base_name(const std::string& path) { return utf8_display(fs::path(path).filename().string()); }
 
 // Removes the temporary packages on every way out.
 struct TempFile {
@@ -122,10 +123,12 @@ struct Prepared {
   double import_s = 0, prepare_s = 0, plan_s = 0;
 };
 
-Prepared load(const std::string& path, uint64_t chunk_target) {
+Prepared load(const std::string& path, uint64_t chunk_target, const std::vector<std::string>& allow_paths) {
   Prepared p;
   auto t0 = Clock::now();
-  p.scene = import_gltf(path, ImportOptions{});
+  ImportOptions io;
+  io.allowed_dirs = allow_paths;
+  p.scene = import_gltf(path, io);
   p.import_s = since(t0);
   t0 = Clock::now();
   PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision
@@ -206,7 +209,7 @@ void run_proxy(const DagBenchConfig& cfg, std::vector<ProxyRecord>& out, uint64_
   voxel::DagPool shared;
   for (const std::string& path : cfg.scenes) {
     const auto t0 = Clock::now();
-    const Prepared p = load(path, uint64_t(1) << 40);  // one batching point per model
+    const Prepared p = load(path, uint64_t(1) << 40, cfg.allow_paths);  // one batching point per model
     const voxel::MeshProxies meshes(p.scene, p.plan);
     voxel::VoxelOptions vo;
     vo.resolution = cfg.proxy_resolution;
@@ -309,7 +312,7 @@ int64_t run_sweep(const DagBenchConfig& cfg, int threads, std::vector<SweepRecor
   for (const std::string& path : cfg.scenes) {
     const auto t_scene = Clock::now();
     std::optional<Prepared> p;
-    arena.execute([&] { p.emplace(load(path, 0)); });
+    arena.execute([&] { p.emplace(load(path, 0, cfg.allow_paths)); });
     note("sweep %s: %" PRIu64 " unique / %" PRIu64 " instanced triangles, %zu batching points (load %.1f s)",
          base_name(path).c_str(), p->scene.unique_triangles(), p->scene.instanced_triangles(), p->plan.points.size(),
          since(t_scene));
@@ -438,7 +441,7 @@ void run_convert(const DagBenchConfig& cfg, int threads, std::vector<ConvertCost
   for (const std::string& path : cfg.scenes) {
     const auto t_scene = Clock::now();
     std::optional<Prepared> p;
-    arena.execute([&] { p.emplace(load(path, 0)); });
+    arena.execute([&] { p.emplace(load(path, 0, cfg.allow_paths)); });
     ConvertCost c;
     c.scene = path;
     c.unique = p->scene.unique_triangles();
