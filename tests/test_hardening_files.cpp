@@ -42,9 +42,17 @@ std::string four_rays() {
   return r;
 }
 
+// The test's name, usable as one path component (parameterized names hold '/').
+std::string test_name() {
+  std::string n = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  for (char& c : n)
+    if (c == '/') c = '_';
+  return n;
+}
+
 class HardeningFiles : public ::testing::Test {
  protected:
-  fs::path dir = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::path dir = temp_dir(test_name());
   fs::path in = dir / "in", out = dir / "o";
   void SetUp() override {
     fs::create_directories(in);
@@ -82,6 +90,9 @@ struct SignalCase {
   bool named_fallback;  // RTP_TEST_NO_O_TMPFILE: the filesystem-without-O_TMPFILE path
   const char* tool;
 };
+void PrintTo(const SignalCase& c, std::ostream* os) {
+  *os << c.tool << " signal " << c.sig << (c.named_fallback ? " (named temporary)" : " (O_TMPFILE)");
+}
 
 class InterruptedWrite : public HardeningFiles, public ::testing::WithParamInterface<SignalCase> {};
 

@@ -32,7 +32,8 @@ int open_input_file(const std::string& path, const std::string& what, int extra_
   const int base = O_RDONLY | O_CLOEXEC | O_NONBLOCK;
   int fd = ::open(path.c_str(), base | extra_flags);
   if (fd < 0 && errno == EINVAL && (extra_flags & O_DIRECT)) fd = ::open(path.c_str(), base | (extra_flags & ~O_DIRECT));
-  if (fd < 0) throw Error(ExitCode::kInputIo, "cannot open " + label(what, path) + ": " + std::strerror(errno));
+  if (fd < 0)
+    throw Error(ExitCode::kInputIo, "cannot open " + label(what, path) + ": " + (errno == ENOENT ? "no such file" : std::strerror(errno)));
   struct stat st{};
   if (::fstat(fd, &st) != 0) {
     const int e = errno;

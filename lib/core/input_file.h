@@ -11,9 +11,9 @@ namespace rtp {
 // The open uses O_NONBLOCK (cleared afterwards) so a FIFO cannot block; the type is checked with
 // fstat on the opened descriptor. `what` names the file in messages ("ray file", "package"; may be
 // empty). Returns the descriptor; `size` (optional) receives the file size.
-// Throws Error(kInputIo): "cannot open 'P': is a directory", "... is not a regular file (FIFO)",
-// "... No such file or directory". With O_DIRECT in `extra_flags` and a filesystem that refuses it,
-// the file is opened without O_DIRECT (check with fcntl(F_GETFL)).
+// Throws Error(kInputIo): "cannot open 'P': is a directory", "... is not a regular file (a FIFO)",
+// "... no such file", or the system's reason. With O_DIRECT in `extra_flags` and a filesystem that
+// refuses it, the file is opened without O_DIRECT (check with fcntl(F_GETFL)).
 int open_input_file(const std::string& path, const std::string& what = "", int extra_flags = 0, uint64_t* size = nullptr);
 
 // Reads all of a regular file (open_input_file, then exactly its size). Throws Error(kInputIo).
