@@ -66,7 +66,7 @@ void run_proxy(const DagBenchConfig& cfg, std::vector<ProxyRecord>& out, uint64_
   voxel::DagPool shared;
   for (const std::string& path : cfg.scenes) {
     const auto t0 = Clock::now();
-    const Prepared p = load(path, uint64_t(1) << 40);  // one batching point per model
+    const Prepared p = load(path, uint64_t(1) << 40, cfg.allow_paths);  // one batching point per model
     const voxel::MeshProxies meshes(p.scene, p.plan);
     voxel::VoxelOptions vo;
     vo.resolution = cfg.proxy_resolution;

@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "package/package.h"
 
 namespace rtp {
@@ -47,20 +48,9 @@ std::string chunk_label(const fmt::TocEntry& e, size_t i) {
 }
 
 PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(path) {
-  // O_NONBLOCK: opening a FIFO must not wait for a writer; it is rejected below as not a regular file.
-  const int flags = O_RDONLY | O_CLOEXEC | O_NONBLOCK;
-  fd_ = ::open(path.c_str(), flags | (direct_io ? O_DIRECT : 0));
-  if (fd_ < 0 && direct_io && errno == EINVAL) fd_ = ::open(path.c_str(), flags);  // no O_DIRECT here
-  else direct_ = direct_io;
-  if (fd_ < 0) throw Error(ExitCode::kInputIo, "cannot open '" + path + "': " + std::strerror(errno));
-  struct stat st{};
-  if (::fstat(fd_, &st) != 0) throw Error(ExitCode::kInputIo, "cannot stat '" + path + "'");
-  if (!S_ISREG(st.st_mode))
-    fail_invalid("not a package: '" + path + "' is " +
-                 (S_ISDIR(st.st_mode) ? "a directory" : S_ISFIFO(st.st_mode) ? "a FIFO" :
-                  S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device" : "not a regular file"));
-  ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK);
-  file_size_ = uint64_t(st.st_size);
+  // A regular file only (a directory, FIFO or device gets a clear message; a FIFO never blocks).
+  fd_ = open_input_file(path, "", direct_io ? O_DIRECT : 0, &file_size_);
+  direct_ = direct_io && (::fcntl(fd_, F_GETFL) & O_DIRECT);  // false where O_DIRECT is refused
   if (file_size_ < fmt::kAlignment)
     fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
                  std::to_string(fmt::kAlignment) + "-byte header block");
