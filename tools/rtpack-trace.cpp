@@ -20,22 +20,9 @@
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
 #include "package/package_tracer.h"
+#include "trace/ray_file.h"
 
 namespace {
-
-std::vector<rtp::fmt::Ray> read_rays(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const uint64_t size = fs::file_size(path, ec);
-  if (ec) throw rtp::Error(rtp::ExitCode::kInputIo, "cannot open ray file '" + path + "'");
-  if (size % sizeof(rtp::fmt::Ray))
-    rtp::fail_invalid("ray file '" + path + "': " + std::to_string(size) + " bytes is not a multiple of 32 (8 float32 per ray)");
-  std::vector<rtp::fmt::Ray> rays(size / sizeof(rtp::fmt::Ray));
-  std::ifstream f(path, std::ios::binary);
-  if (!f.read(reinterpret_cast<char*>(rays.data()), std::streamsize(size)))
-    throw rtp::Error(rtp::ExitCode::kInputIo, "cannot read ray file '" + path + "'");
-  return rays;
-}
 
 // Primary rays through a W x H image from the package's first glTF camera, or from an automatic
 // camera framing the header bounds (looking at the centre from +z, 45 degrees).
@@ -161,7 +148,7 @@ int main(int argc, char** argv) {
       const auto cr = camera_rays(reader, w, h);
       write_atomically(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
     }
-    const std::vector<rtp::fmt::Ray> rays = read_rays(rays_path);
+    const std::vector<rtp::fmt::Ray> rays = rtp::read_ray_file(rays_path);
     rtp::PackageTraceOptions opt;
     opt.cull = !no_cull;
     const rtp::Isa best = rtp::detect_isa();
