@@ -73,7 +73,7 @@ GltfBuilder meshopt_triangle() {
 }
 const nlohmann::json kFallback = {{"byteLength", 36}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}};
 
-class Hostile : public ::testing::Test {
+class HostileGltf : public ::testing::Test {
  protected:
   fs::path dir = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
   void TearDown() override { fs::remove_all(dir); }
@@ -102,13 +102,13 @@ class Hostile : public ::testing::Test {
 
 // --- malformed JSON values: exit 3 with the pointer, never nlohmann's type_error --------------------
 
-TEST_F(Hostile, PrimitiveModeIsAString) {
+TEST_F(HostileGltf, PrimitiveModeIsAString) {
   GltfBuilder b = one_triangle();
   b.j["meshes"][0]["primitives"][0]["mode"] = "4";
   expect(b, "/meshes/0/primitives/0/mode: not an integer");
 }
 
-TEST_F(Hostile, SparseIndicesComponentTypeIsAString) {
+TEST_F(HostileGltf, SparseIndicesComponentTypeIsAString) {
   GltfBuilder b = one_triangle();
   const int iv = b.add_view(std::vector<uint16_t>{1, 0});
   const int vv = b.add_view(std::vector<float>{9, 9, 9});
@@ -117,33 +117,33 @@ TEST_F(Hostile, SparseIndicesComponentTypeIsAString) {
   expect(b, "/accessors/0/sparse/indices/componentType: not an integer");
 }
 
-TEST_F(Hostile, CameraTypeIsANumber) {
+TEST_F(HostileGltf, CameraTypeIsANumber) {
   GltfBuilder b = one_triangle();
   b.j["cameras"] = {{{"type", 1}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}}};
   expect(b, "/cameras/0/type: not a string");
 }
 
-TEST_F(Hostile, PerspectiveCameraWithoutYfov) {
+TEST_F(HostileGltf, PerspectiveCameraWithoutYfov) {
   GltfBuilder b = one_triangle();
   b.j["cameras"] = {{{"type", "perspective"}, {"perspective", {{"znear", 0.1}}}}};
   expect(b, "/cameras/0/perspective/yfov: missing");
 }
 
-TEST_F(Hostile, MeshoptModeIsNotAString) {
+TEST_F(HostileGltf, MeshoptModeIsNotAString) {
   GltfBuilder b = meshopt_triangle();
   b.j["bufferViews"][0]["extensions"]["EXT_meshopt_compression"]["mode"] = 0;
   expect_file(write_with_buffers(b, {kFallback}, dir / "t.gltf"),
               "/bufferViews/0/extensions/EXT_meshopt_compression/mode: not a string");
 }
 
-TEST_F(Hostile, MeshoptByteLengthMissing) {
+TEST_F(HostileGltf, MeshoptByteLengthMissing) {
   GltfBuilder b = meshopt_triangle();
   b.j["bufferViews"][0]["extensions"]["EXT_meshopt_compression"].erase("byteLength");
   expect_file(write_with_buffers(b, {kFallback}, dir / "t.gltf"),
               "/bufferViews/0/extensions/EXT_meshopt_compression/byteLength: missing");
 }
 
-TEST_F(Hostile, MeshoptFallbackIsNotABoolean) {
+TEST_F(HostileGltf, MeshoptFallbackIsNotABoolean) {
   GltfBuilder b = meshopt_triangle();
   nlohmann::json fb = kFallback;
   fb["extensions"]["EXT_meshopt_compression"]["fallback"] = "yes";
@@ -153,7 +153,7 @@ TEST_F(Hostile, MeshoptFallbackIsNotABoolean) {
 
 // --- codecs -----------------------------------------------------------------------------------------
 
-TEST_F(Hostile, MeshoptCorruptDataNamesTheBufferView) {
+TEST_F(HostileGltf, MeshoptCorruptDataNamesTheBufferView) {
   GltfBuilder b = meshopt_triangle();  // raw floats are not a meshopt vertex stream
   const auto [msg, code] = import_error(write_with_buffers(b, {kFallback}, dir / "t.gltf"));
   EXPECT_EQ(code, ExitCode::kInputInvalid);
@@ -173,7 +173,7 @@ std::string draco_lantern(const fs::path& dir, const std::function<void(nlohmann
   return (dir / "Lantern.gltf").string();
 }
 
-TEST_F(Hostile, DracoAttributeIdNotInThePayload) {
+TEST_F(HostileGltf, DracoAttributeIdNotInThePayload) {
   const std::string p = draco_lantern(dir, [](nlohmann::json& j) {
     j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["attributes"]["POSITION"] = 99;
   });
@@ -181,7 +181,7 @@ TEST_F(Hostile, DracoAttributeIdNotInThePayload) {
                      "Draco attribute id 99 is not in the payload"});
 }
 
-TEST_F(Hostile, DracoCorruptPayloadNamesThePrimitive) {
+TEST_F(HostileGltf, DracoCorruptPayloadNamesThePrimitive) {
   const std::string p = draco_lantern(
       dir, [](nlohmann::json&) {},
       [](std::string& bin) {
@@ -190,7 +190,7 @@ TEST_F(Hostile, DracoCorruptPayloadNamesThePrimitive) {
   expect_convert(p, {"/meshes/0/primitives/0/extensions/KHR_draco_mesh_compression: Draco decode failed"});
 }
 
-TEST_F(Hostile, DracoAttributeWithWrongComponentCount) {
+TEST_F(HostileGltf, DracoAttributeWithWrongComponentCount) {
   const std::string p = draco_lantern(dir, [](nlohmann::json& j) {
     auto& d = j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["attributes"];
     d["POSITION"] = d["TEXCOORD_0"];  // a 2-component attribute for a VEC3 accessor
@@ -201,7 +201,7 @@ TEST_F(Hostile, DracoAttributeWithWrongComponentCount) {
 
 // --- depth ------------------------------------------------------------------------------------------
 
-TEST_F(Hostile, DeeplyNestedJsonIsRejectedBeforeParsing) {
+TEST_F(HostileGltf, DeeplyNestedJsonIsRejectedBeforeParsing) {
   GltfBuilder b = one_triangle();
   const std::string gltf = b.write_gltf(dir / "ok.gltf");
   std::string text = slurp(gltf);
@@ -211,7 +211,7 @@ TEST_F(Hostile, DeeplyNestedJsonIsRejectedBeforeParsing) {
   expect_convert((dir / "deep.gltf").string(), {"JSON nested more than 256 levels deep"});
 }
 
-TEST_F(Hostile, BracketsInsideStringsDoNotCountAsNesting) {
+TEST_F(HostileGltf, BracketsInsideStringsDoNotCountAsNesting) {
   GltfBuilder b = one_triangle();
   // 1000 brackets inside strings, one of them behind an escaped quote: not nesting.
   b.j["asset"]["extras"] = {{"a", std::string(1000, '[')}, {"b", "\"" + std::string(1000, '{') + "\\"}};
@@ -223,7 +223,7 @@ TEST_F(Hostile, BracketsInsideStringsDoNotCountAsNesting) {
 
 // --- declared sizes before allocation ----------------------------------------------------------------
 
-TEST_F(Hostile, AccessorWithoutBufferViewIsBounded) {
+TEST_F(HostileGltf, AccessorWithoutBufferViewIsBounded) {
   GltfBuilder b = one_triangle();
   b.j["accessors"][0].erase("bufferView");
   b.j["accessors"][0]["count"] = 100000000;  // 1.2 GB of zeros (3.4 GB as read) from a 1 KB file
@@ -232,7 +232,7 @@ TEST_F(Hostile, AccessorWithoutBufferViewIsBounded) {
                  1000000);
 }
 
-TEST_F(Hostile, MeshoptDeclaredSizeBeyondTheCodecsExpansion) {
+TEST_F(HostileGltf, MeshoptDeclaredSizeBeyondTheCodecsExpansion) {
   GltfBuilder b = meshopt_triangle();
   const uint64_t count = uint64_t(1) << 28;  // 3 GiB decoded from 36 compressed bytes
   b.j["bufferViews"][0]["byteLength"] = 12 * count;
@@ -246,7 +246,7 @@ TEST_F(Hostile, MeshoptDeclaredSizeBeyondTheCodecsExpansion) {
 
 // --- transforms that overflow float -------------------------------------------------------------------
 
-TEST_F(Hostile, NodeMatrixOverflowingFloatNamesTheNode) {
+TEST_F(HostileGltf, NodeMatrixOverflowingFloatNamesTheNode) {
   GltfBuilder b = one_triangle();
   b.j["nodes"][0]["matrix"] = {1e39, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   const auto [msg, code] = import_error(b.write_gltf(dir / "t.gltf"));
@@ -254,7 +254,7 @@ TEST_F(Hostile, NodeMatrixOverflowingFloatNamesTheNode) {
   EXPECT_EQ(msg.rfind("/nodes/0/matrix: world transform is not finite in float", 0), 0u) << msg;
 }
 
-TEST_F(Hostile, WorldCoordinatesOverflowingFloatNameTheNode) {
+TEST_F(HostileGltf, WorldCoordinatesOverflowingFloatNameTheNode) {
   GltfBuilder b;
   const int pos = b.add_positions({0, 0, 0, 10, 0, 0, 0, 10, 0});
   b.add_mesh(pos);
@@ -265,7 +265,7 @@ TEST_F(Hostile, WorldCoordinatesOverflowingFloatNameTheNode) {
 
 // --- package metadata cameras (rtpack-trace, rtpack-inspect) -----------------------------------------
 
-class HostileMetadata : public Hostile {
+class HostileMetadata : public HostileGltf {
  protected:
   std::string pkg = (dir / "p.rtp").string();
   void SetUp() override {

@@ -33,6 +33,8 @@
 
 #include "cluster/cluster.h"
 #include "core/error.h"
+#include "core/input_file.h"
+#include "core/utf8.h"
 #include "core/progress.h"
 #include "mesh/prepare.h"
 #include "oracle/embree_oracle.h"
@@ -103,7 +105,8 @@ ConvertRun convert_once(const ConvertBenchConfig& cfg, int leaf_width, const std
   ConvertRun r;
   const auto t0 = Clock::now();
   progress.stage(label + "import");
-  ImportOptions opt;  // rtpack-convert: only --scene is set, -1 by default
+  ImportOptions opt;  // rtpack-convert: only --scene (-1 by default) and --allow-path are set
+  opt.allowed_dirs = cfg.allow_paths;
   Scene scene = import_gltf(cfg.scene_path, opt);
   const auto t1 = Clock::now();
   progress.stage(label + "prepare");
@@ -131,7 +134,7 @@ ConvertRun convert_once(const ConvertBenchConfig& cfg, int leaf_width, const std
   // The metadata rtpack-convert writes (same keys, types and values), so the bytes are the same.
   const std::string build = "collapse", chunk_by = "instanced";
   cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
-                 {"source", fs::path(cfg.scene_path).filename().string()},
+                 {"source", utf8_display(fs::path(cfg.scene_path).filename().string())},
                  {"options",
                   {{"bvh_width", cfg.bvh_width}, {"leaf_width", leaf_width}, {"bvh_build", build},
                    {"chunk_target", cfg.chunk_target}, {"chunk_by", chunk_by}, {"zstd_level", cfg.zstd_level},
@@ -181,7 +184,8 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
     output = (fs::temp_directory_path() / ("rtpack-bench-convert-" + std::to_string(::getpid()) + ".rtp")).string();
     cleanup.path = output;
   }
-  check_output_path(output);  // before any work, as rtpack-convert
+  check_not_same_file(cfg.scene_path, output);  // before any work, as rtpack-convert
+  check_output_path(output);
 
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
   tbb::task_arena arena(threads);
@@ -234,7 +238,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
 
   if (cfg.json) {
     json rec = {{"type", "convert"},
-                {"scene", cfg.scene_path},
+                {"scene", utf8_display(cfg.scene_path)},
                 {"input_bytes", in_bytes},
                 {"input_total_bytes", in_total},
                 {"package_bytes", package_bytes},

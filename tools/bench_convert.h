@@ -3,11 +3,13 @@
 // against an Embree 3 HIGH build of the same prepared triangles and instances, in the same process.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace rtp::bench {
 
 struct ConvertBenchConfig {
   std::string scene_path;
+  std::vector<std::string> allow_paths;  // --allow-path
   std::string output;         // --convert-output: keep the package there (else a temporary file, deleted)
   int bvh_width = 8;          // leaf width = W, 8 for W = 16 (rtpack-convert's default)
   int zstd_level = 9;

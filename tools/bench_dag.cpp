@@ -8,9 +8,10 @@
 //          with no subtree shared), the DAG built alone (LocalDag) and in a pool of its own (what a
 //          package of that model stores), then every scene's DAG in ONE shared voxel::DagPool (in the
 //          order given) and the saving from sharing. Then, in a tbb::task_arena of ONE thread, one
-//          warm-up and the best of max(--reps, 5) of: voxelize_point (triangles -> grid -> DAG), the
-//          triangle loop alone (voxelize_triangle over every piece triangle through its instance
-//          transform into a grid with the point's origin, cell and margin) and build_dag alone.
+//          warm-up and the best of max(--reps, 30) of: voxelize_point (triangles -> grid -> DAG), the
+//          triangle loop alone (voxelize_triangle over every piece triangle, world positions through
+//          its instance transform computed once before timing, into a grid with the point's origin,
+//          cell and margin) and build_dag alone.
 // sweep    The scene converted as rtpack-convert converts it (default chunk target, W=8, B=8,
 //          zstd 9) once per --resolutions value (every batching point at that resolution), then
 //          loaded in core (PackageReader + load_package_in_core). Rays are generated once per scene

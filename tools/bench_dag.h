@@ -20,6 +20,7 @@ namespace rtp::bench {
 
 struct DagBenchConfig {
   std::vector<std::string> scenes;          // the first comes from rtpack-bench's SCENE positional
+  std::vector<std::string> allow_paths;     // --allow-path: further directories for external buffers
   std::vector<std::string> parts{"proxy", "sweep", "convert"};  // --parts
   std::vector<uint32_t> resolutions{32, 64, 128, 256, 512};     // --resolutions (sweep)
   uint32_t proxy_resolution = 128;          // --proxy-resolution (proxy part)

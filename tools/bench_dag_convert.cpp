@@ -30,7 +30,7 @@ void run_convert(const DagBenchConfig& cfg, int threads, std::vector<ConvertCost
   for (const std::string& path : cfg.scenes) {
     const auto t_scene = Clock::now();
     std::optional<Prepared> p;
-    arena.execute([&] { p.emplace(load(path, 0)); });
+    arena.execute([&] { p.emplace(load(path, 0, cfg.allow_paths)); });
     ConvertCost c;
     c.scene = path;
     c.unique = p->scene.unique_triangles();

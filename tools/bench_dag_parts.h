@@ -46,8 +46,9 @@ struct Prepared {
   double import_s = 0, prepare_s = 0, plan_s = 0;
 };
 
-// Imported, prepared (rtpack-convert's defaults) and planned with this chunk target (0 = derived).
-Prepared load(const std::string& path, uint64_t chunk_target);
+// Imported (buffers also from allow_paths), prepared (rtpack-convert's defaults) and planned with this
+// chunk target (0 = derived).
+Prepared load(const std::string& path, uint64_t chunk_target, const std::vector<std::string>& allow_paths);
 // rtpack-convert's defaults (W=8, B=8, collapse, zstd 9) with DAGs on or off at this resolution (0 = chosen).
 ConvertOptions convert_options(const std::string& scene_path, bool dag, uint32_t resolution);
 

@@ -49,7 +49,7 @@ int64_t run_sweep(const DagBenchConfig& cfg, int threads, std::vector<SweepRecor
   for (const std::string& path : cfg.scenes) {
     const auto t_scene = Clock::now();
     std::optional<Prepared> p;
-    arena.execute([&] { p.emplace(load(path, 0)); });
+    arena.execute([&] { p.emplace(load(path, 0, cfg.allow_paths)); });
     note("sweep %s: %" PRIu64 " unique / %" PRIu64 " instanced triangles, %zu batching points (load %.1f s)",
          base_name(path).c_str(), p->scene.unique_triangles(), p->scene.instanced_triangles(), p->plan.points.size(),
          since(t_scene));

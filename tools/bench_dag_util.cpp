@@ -4,6 +4,7 @@
 
 #include "bench_dag_parts.h"
 #include "core/error.h"
+#include "core/utf8.h"
 #include "mesh/prepare.h"
 #include "scene/import.h"
 
@@ -19,12 +20,14 @@ void note(const char* fmt_, ...) {
   va_end(ap);
 }
 
-std::string base_name(const std::string& path) { return fs::path(path).filename().string(); }
+std::string base_name(const std::string& path) { return utf8_display(fs::path(path).filename().string()); }
 
-Prepared load(const std::string& path, uint64_t chunk_target) {
+Prepared load(const std::string& path, uint64_t chunk_target, const std::vector<std::string>& allow_paths) {
   Prepared p;
   auto t0 = Clock::now();
-  p.scene = import_gltf(path, ImportOptions{});
+  ImportOptions io;
+  io.allowed_dirs = allow_paths;
+  p.scene = import_gltf(path, io);
   p.import_s = since(t0);
   t0 = Clock::now();
   PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision

@@ -42,6 +42,7 @@
 #include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
+#include "core/utf8.h"
 #include "oracle/compare.h"
 #include "oracle/embree_oracle.h"
 #include "oracle/rays.h"
@@ -60,6 +61,7 @@ constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers 
 
 struct Config {
   std::string scene_path;
+  std::vector<std::string> allow_paths;  // --allow-path: further directories for external buffers
   size_t rays = 1u << 19;
   std::vector<RayKind> kinds;
   std::vector<int> widths;
@@ -259,7 +261,9 @@ void run_width(const Config& cfg, const Scene& scene, const EmbreeOracle& embree
 int run(const Config& cfg) {
   const auto t_load = Clock::now();
   progress("loading " + cfg.scene_path + " ...");
-  const Scene scene = import_gltf(cfg.scene_path);
+  ImportOptions import_options;
+  import_options.allowed_dirs = cfg.allow_paths;
+  const Scene scene = import_gltf(cfg.scene_path, import_options);
   if (scene.instanced_triangles() == 0) throw Error(ExitCode::kInputInvalid, "the scene has no triangles");
   const double load_s = seconds_since(t_load);
   const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
@@ -342,7 +346,7 @@ int run(const Config& cfg) {
       for (const KindData& x : kinds)
         if (x.kind == r.kind) k = &x;
       out.push_back({{"type", "trace"},
-                     {"scene", cfg.scene_path},
+                     {"scene", utf8_display(cfg.scene_path)},
                      {"kind", ray_kind_name(r.kind)},
                      {"query", k->any ? "any" : "closest"},
                      {"width", r.width},
@@ -365,7 +369,7 @@ int run(const Config& cfg) {
     }
     for (const BuildRecord& b : builds)
       out.push_back({{"type", "build"},
-                     {"scene", cfg.scene_path},
+                     {"scene", utf8_display(cfg.scene_path)},
                      {"width", b.width},
                      {"block", b.width},
                      {"threads", b.threads},
@@ -377,7 +381,7 @@ int run(const Config& cfg) {
                      {"cpu", cpu}});
     for (const BvhStatsRow& r : sah_rows)
       out.push_back({{"type", "sah"},
-                     {"scene", cfg.scene_path},
+                     {"scene", utf8_display(cfg.scene_path)},
                      {"model", r.model},
                      {"width", r.width},
                      {"block", r.block},
@@ -451,6 +455,8 @@ int main(int argc, char** argv) {
   Config cfg;
   std::string kinds = "primary,random,bounce,shadow", width = "all", threads = "all", order = "all", isa = "best";
   app.add_option("scene", cfg.scene_path, "input .gltf or .glb")->required();
+  app.add_option("--allow-path", cfg.allow_paths,
+                 "also read external buffers from DIR (repeatable; default: only inside the glTF's directory)");
   app.add_option("--rays", cfg.rays, "rays per kind (default 524288)")->check(CLI::Range(size_t(1), size_t(1) << 30));
   app.add_option("--kinds", kinds, "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
   app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default all)");
@@ -524,6 +530,7 @@ int main(int argc, char** argv) {
   try {
     if (convert) {
       conv.scene_path = cfg.scene_path;
+      conv.allow_paths = cfg.allow_paths;
       conv.threads = threads == "all" ? 0 : cfg.threads[0];
       conv.reps = cfg.reps;
       conv.json = cfg.json;
@@ -531,6 +538,7 @@ int main(int argc, char** argv) {
     }
     if (app.count("--dag")) {
       dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);
+      dag.allow_paths = cfg.allow_paths;
       dag.threads = threads == "all" ? 0 : cfg.threads[0];
       dag.reps = cfg.reps, dag.json = cfg.json, dag.seed = cfg.seed, dag.isa = cfg.isa, dag.order = cfg.orders[0];
       if (app.count("--rays")) dag.rays = cfg.rays;

@@ -10,6 +10,8 @@
 
 #include "cluster/cluster.h"
 #include "core/error.h"
+#include "core/input_file.h"
+#include "core/utf8.h"
 #include "core/progress.h"
 #include "mesh/prepare.h"
 #include "package/package.h"
@@ -33,8 +35,10 @@ int main(int argc, char** argv) {
   int scene_index = -1, subdivide = 0, width = 8, leaf_width = 0, zstd_level = 9, threads = 0;
   double weld = -1, subdivide_to = 0;
   uint64_t chunk_target = 0;
-  std::vector<std::string> attributes;
+  std::vector<std::string> attributes, allow_paths;
   app.add_option("input", input, "input .gltf or .glb")->required();
+  app.add_option("--allow-path", allow_paths,
+                 "also read external buffers from DIR (repeatable; default: only inside the glTF's directory)");
   app.add_option("-o,--output", output, "output package (.rtp)");
   app.add_flag("--dry-run", dry_run, "import and prepare only; print the scene summary");
   app.add_flag("--json", json, "print the summary as JSON on stdout");
@@ -95,11 +99,15 @@ int main(int argc, char** argv) {
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
   rtp::Progress progress(!quiet && !json);
   try {
-    if (!dry_run) rtp::check_output_path(output);  // before any work
+    if (!dry_run) {  // before any work
+      rtp::check_not_same_file(input, output);
+      rtp::check_output_path(output);
+    }
     const auto t0 = Clock::now();
     progress.stage("import");
     rtp::ImportOptions opt;
     opt.scene = scene_index;
+    opt.allowed_dirs = allow_paths;
     for (const std::string& a : attributes) (a == "normal" ? opt.normals : opt.uvs) = true;
     rtp::Scene scene = rtp::import_gltf(input, opt);
     const auto t1 = Clock::now();
@@ -147,7 +155,7 @@ int main(int argc, char** argv) {
     cv.voxel.resolution = dag_resolution;
     cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
     cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
-                   {"source", std::filesystem::path(input).filename().string()},
+                   {"source", rtp::utf8_display(std::filesystem::path(input).filename().string())},
                    {"options",
                     {{"bvh_width", width}, {"leaf_width", leaf_width}, {"bvh_build", build}, {"chunk_target", chunk_target},
                      {"chunk_by", chunk_by}, {"zstd_level", zstd_level}, {"subdivide", subdivide},
@@ -162,8 +170,8 @@ int main(int argc, char** argv) {
     for (const auto& [kind, s] : rep.by_kind)
       sections[kind] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
                         {"bytes_per_unique_triangle", double(s.stored) / tris}};
-    nlohmann::json j = {{"input", input},
-                        {"output", output},
+    nlohmann::json j = {{"input", rtp::utf8_display(input)},
+                        {"output", rtp::utf8_display(output)},
                         {"input_bytes", uint64_t(in_bytes)},
                         {"output_bytes", rep.file_bytes},
                         {"chunks", rep.chunks},

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/utf8.h"
 #include "core/progress.h"
 #include "package/inspect.h"
 #include "package/package.h"
@@ -239,7 +240,7 @@ int main(int argc, char** argv) {
     opt.verify = verify;
     const rtp::InspectResult r = rtp::inspect_package(reader, opt);
     nlohmann::json j = r.report;
-    j["file"] = input;
+    j["file"] = rtp::utf8_display(input);  // any bytes in the name: valid JSON
     if (json_out) {
       std::cout << j.dump(2) << "\n";
     } else {

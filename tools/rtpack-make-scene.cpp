@@ -32,12 +32,10 @@
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <random>
 #include <string>
@@ -45,6 +43,9 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/input_file.h"
+#include "core/utf8.h"
+#include "core/output_file.h"
 #include "core/math.h"
 #include "scene/import.h"
 
@@ -76,7 +77,7 @@ struct Options {
   uint64_t seed = 1;
   double spacing = 2.0;
   int refine = -1;     // -1: 1 for forest content, 0 otherwise
-  std::vector<std::string> meshes;
+  std::vector<std::string> meshes, allow_paths;
   bool forest_content() const { return kind == "forest" || (kind == "far" && base == "forest"); }
 };
 
@@ -110,15 +111,14 @@ std::string resolve_default(const std::string& rel) {
   return rel;
 }
 
-std::vector<SourceMesh> load_sources(const std::vector<std::string>& files) {
+std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths) {
   std::vector<SourceMesh> out;
   for (const std::string& file : files) {
-    std::ifstream probe(file, std::ios::binary);
-    if (!probe) throw Error(ExitCode::kInputIo, "cannot open mesh source '" + file + "'");
-    probe.close();
     rtp::Scene scene;
     try {
-      scene = rtp::import_gltf(file);
+      rtp::ImportOptions opt;
+      opt.allowed_dirs = allow_paths;
+      scene = rtp::import_gltf(file, opt);
     } catch (const Error& e) {
       throw Error(e.code(), "mesh source '" + file + "': " + e.what());
     } catch (const std::exception& e) {
@@ -250,30 +250,22 @@ class GlbBuilder {
     u32(total);
     u32(text.size());
     u32(0x4E4F534A);  // "JSON"
-    const std::string tmp = path + ".tmp";
-    std::error_code ec;
-    {
-      std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-      if (!f) throw Error(ExitCode::kOutput, "cannot create '" + tmp + "': " + std::strerror(errno));
-      f.write(header.data(), std::streamsize(header.size()));
-      f.write(text.data(), std::streamsize(text.size()));
-      header.clear();
-      u32(bin_.size());
-      u32(0x004E4942);  // "BIN\0"
-      f.write(header.data(), std::streamsize(header.size()));
-      f.write(reinterpret_cast<const char*>(bin_.data()), std::streamsize(bin_.size()));
-      f.close();
-      if (!f) {
-        fs::remove(tmp, ec);
-        throw Error(ExitCode::kOutput, "error writing '" + tmp + "'");
-      }
-    }
-    fs::rename(tmp, path, ec);
-    if (ec) {
-      std::error_code ignored;
-      fs::remove(tmp, ignored);
-      throw Error(ExitCode::kOutput, "cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
-    }
+    // One unnamed output file linked into place when whole (core/output_file.h): no temporary name.
+    rtp::OutputFile f(path);
+    uint64_t off = 0;
+    auto put = [&](const void* d, size_t n) {
+      f.write_at(off, d, n);
+      off += n;
+    };
+    put(header.data(), header.size());
+    put(text.data(), text.size());
+    header.clear();
+    u32(bin_.size());
+    u32(0x004E4942);  // "BIN\0"
+    put(header.data(), header.size());
+    put(bin_.data(), bin_.size());
+    f.set_size(off);
+    f.commit();
     return total;
   }
 
@@ -465,7 +457,9 @@ int run(const Options& cli) {
   if (files.empty())
     for (const std::string& rel : kDefaultMeshes) files.push_back(resolve_default(rel));
 
-  std::vector<SourceMesh> meshes = load_sources(files);
+  for (const std::string& f : files) rtp::check_not_same_file(f, o.output);
+  rtp::check_output_path(o.output);  // before any work
+  std::vector<SourceMesh> meshes = load_sources(files, o.allow_paths);
   if (uint64_t(o.count) < meshes.size())
     throw Error(ExitCode::kUsage, "--count " + std::to_string(o.count) + " is below the number of source meshes (" +
                                       std::to_string(meshes.size()) + "); every mesh needs an instance");
@@ -483,7 +477,7 @@ int run(const Options& cli) {
   GlbBuilder g;
   g.reserve(size_t(vertices * 12 + unique * 12 + (forest ? uint64_t(o.count) * 40 : 0) + 4096));
   json sources = json::array();
-  for (const std::string& f : files) sources.push_back(fs::path(f).filename().string());
+  for (const std::string& f : files) sources.push_back(rtp::utf8_display(fs::path(f).filename().string()));
   g.doc["asset"]["extras"] = {{"kind", o.kind},   {"base", o.kind == "far" ? o.base : o.kind},
                               {"count", o.count}, {"seed", o.seed},
                               {"refine", o.refine}, {"spacing", o.spacing},
@@ -508,7 +502,7 @@ int main(int argc, char** argv) {
   Options o;
   CLI::App app{"rtpack-make-scene: deterministic test scenes (.glb) from the sample meshes"};
   app.add_option("kind", o.kind, "gallery | forest | far")->required()->check(CLI::IsMember({"gallery", "forest", "far"}));
-  app.add_option("-o,--output", o.output, "output .glb (written to OUTPUT.tmp, then renamed)")->required();
+  app.add_option("-o,--output", o.output, "output .glb (appears only when complete)")->required();
   app.add_option("--count", o.count, "gallery: mesh nodes (default 12); forest: total instances (default 3000)")
       ->check(CLI::Range(int64_t(1), int64_t(100'000'000)));
   app.add_option("--seed", o.seed, "forest random seed (default 1)");
@@ -516,6 +510,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-3, 1e5));
   app.add_option("--mesh", o.meshes, "source glTF file, repeatable (default: Suzanne, Lantern, BoomBox samples)")
       ->allow_extra_args(false);
+  app.add_option("--allow-path", o.allow_paths, "also read --mesh files' external buffers from DIR (repeatable)");
   app.add_option("--refine", o.refine, "1-to-4 midpoint splits of every source triangle (default: forest 1, gallery 0)")
       ->check(CLI::Range(0, 8));
   CLI::Option* base = app.add_option("--base", o.base, "far only: gallery (default) or forest")

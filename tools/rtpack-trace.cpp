@@ -9,13 +9,14 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include "core/error.h"
 #include "core/json_checked.h"
+#include "core/input_file.h"
+#include "core/output_file.h"
 #include "package/package.h"
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
@@ -83,23 +84,6 @@ std::vector<rtp::fmt::Ray> camera_rays(const rtp::PackageReader& r, int w, int h
   return rays;
 }
 
-void write_atomically(const std::string& path, const void* data, size_t size) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f || !f.write(static_cast<const char*>(data), std::streamsize(size)) || !f.flush()) {
-      std::filesystem::remove(tmp);
-      throw rtp::Error(rtp::ExitCode::kOutput, "cannot write '" + path + "'");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw rtp::Error(rtp::ExitCode::kOutput, "cannot write '" + path + "': " + ec.message());
-  }
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -133,6 +117,15 @@ int main(int argc, char** argv) {
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
   try {
+    // No output may be an input (or another output): compared by device and inode.
+    for (const std::string* out : {&hits_path, &shading_path}) {
+      rtp::check_not_same_file(package, *out);
+      rtp::check_not_same_file(rays_path, *out);
+    }
+    if (!make_rays.empty()) rtp::check_not_same_file(package, rays_path);  // the ray file is written then
+    rtp::check_not_same_file(hits_path, shading_path);
+    if (hits_path == shading_path || (!make_rays.empty() && rays_path == hits_path))
+      throw rtp::Error(rtp::ExitCode::kUsage, "two outputs name the same file '" + hits_path + "'");
     rtp::check_output_path(hits_path);
     if (!shading_path.empty()) {
       if (any) throw rtp::Error(rtp::ExitCode::kUsage, "--shading needs closest hits: it cannot be used with --any");
@@ -146,7 +139,7 @@ int main(int argc, char** argv) {
         throw rtp::Error(rtp::ExitCode::kUsage, "--make-camera-rays " + make_rays + ": expected WxH, e.g. 640x480");
       rtp::check_output_path(rays_path);
       const auto cr = camera_rays(reader, w, h);
-      write_atomically(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
+      rtp::write_output_file(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
     }
     const std::vector<rtp::fmt::Ray> rays = rtp::read_ray_file(rays_path);
     rtp::PackageTraceOptions opt;
@@ -171,7 +164,7 @@ int main(int argc, char** argv) {
     uint64_t hit_count = 0;
     if (any) {
       for (uint8_t o : occ) hit_count += o;
-      write_atomically(hits_path, occ.data(), occ.size());
+      rtp::write_output_file(hits_path, occ.data(), occ.size());
     } else {
       for (const auto& h : hits) hit_count += h.t != std::numeric_limits<float>::infinity();
       if (!shading_path.empty()) {  // written first: the hit file appears only when everything succeeded
@@ -181,9 +174,9 @@ int main(int argc, char** argv) {
                     << "--shading writes zeros\n";
         std::vector<rtp::fmt::Shading> shading(hits.size());
         tbb::parallel_for(size_t(0), hits.size(), [&](size_t i) { shading[i] = lookup.shade(hits[i]); });
-        write_atomically(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
+        rtp::write_output_file(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
       }
-      write_atomically(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
+      rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     }
     nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},

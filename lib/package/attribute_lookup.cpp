@@ -2,6 +2,7 @@
 // entry and its triangle, barycentric interpolation, inverse-transpose to world space.
 #include "package/attribute_lookup.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -9,6 +10,7 @@
 #include "core/error.h"
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
+#include "package/check_chunks.h"
 #include "package/chunk_io.h"
 
 namespace rtp {
@@ -35,19 +37,26 @@ struct Chunk {
 
 }  // namespace
 
+// Keyed tables, sorted once loaded: their size follows the entries and ids stored in the file, never a
+// declared mesh id or prim (a hostile id costs one element, not a table up to it).
 struct AttributeLookup::Impl {
+  using Key = std::pair<uint32_t, uint32_t>;  // (mesh, prim); whole meshes use prim 0
   std::vector<fmt::InstanceRecord> instances;
   std::vector<Chunk> chunks;
-  std::vector<Loc> whole;                   // per scene mesh stored whole (segment meshes)
-  std::vector<std::vector<Loc>> per_tri;    // per scene mesh stored as pieces: per triangle
+  std::vector<std::pair<Key, Loc>> whole;    // scene meshes stored whole (segment meshes)
+  std::vector<std::pair<Key, Loc>> per_tri;  // scene meshes stored as pieces: per triangle
   bool normals = false, uvs = false;
 
+  static const Loc* lookup(const std::vector<std::pair<Key, Loc>>& v, Key k) {
+    auto it = std::lower_bound(v.begin(), v.end(), k, [](const std::pair<Key, Loc>& a, const Key& b) { return a.first < b; });
+    return it != v.end() && it->first == k ? &it->second : nullptr;
+  }
   Loc find(uint32_t mesh, uint32_t prim) const {
-    if (mesh < per_tri.size() && prim < per_tri[mesh].size()) return per_tri[mesh][prim];
-    if (mesh < whole.size() && whole[mesh].chunk != fmt::kNoAttribute) {
-      Loc l = whole[mesh];
-      l.triangle = prim;
-      return l;
+    if (const Loc* l = lookup(per_tri, {mesh, prim})) return *l;
+    if (const Loc* l = lookup(whole, {mesh, 0})) {
+      Loc out = *l;
+      out.triangle = prim;
+      return out;
     }
     return {};
   }
@@ -86,30 +95,26 @@ AttributeLookup::AttributeLookup(const PackageReader& r) : impl_(std::make_uniqu
       const bool has_n = e.normal_first != fmt::kNoAttribute, has_uv = e.uv_first != fmt::kNoAttribute;
       if (!has_n && !has_uv) continue;
       // Every index a lookup can follow is checked here, once.
-      if (e.triangle_first + e.triangle_count > c.n_tris ||
-          (has_n && uint64_t(e.normal_first) + e.vertex_count > c.n_normals) ||
-          (has_uv && uint64_t(e.uv_first) + e.vertex_count > c.n_uvs) ||
-          (e.tri_id_first != fmt::kNoAttribute && uint64_t(e.tri_id_first) + e.triangle_count > n_ids))
-        fail_invalid(label + ": entry " + std::to_string(k) + " reaches outside its sections");
+      const std::string ranges = attribute_entry_ranges(e, c.n_tris, c.n_normals, c.n_uvs, n_ids);  // 64-bit safe
+      if (!ranges.empty()) fail_invalid(label + ": entry " + std::to_string(k) + ": " + ranges);
       for (uint64_t t = 0; t < e.triangle_count; ++t)
         for (uint32_t vi : c.tris[e.triangle_first + t])
           if (vi >= e.vertex_count) fail_invalid(label + ": entry " + std::to_string(k) + ": vertex index out of range");
       m.normals |= has_n;
       m.uvs |= has_uv;
       if (e.tri_id_first == fmt::kNoAttribute) {
-        if (m.whole.size() <= e.mesh) m.whole.resize(size_t(e.mesh) + 1);
-        m.whole[e.mesh] = {ci, k, 0};
+        m.whole.push_back({{e.mesh, 0}, {ci, k, 0}});
       } else {
-        if (m.per_tri.size() <= e.mesh) m.per_tri.resize(size_t(e.mesh) + 1);
-        std::vector<Loc>& pt = m.per_tri[e.mesh];
-        for (uint32_t t = 0; t < e.triangle_count; ++t) {
-          const uint32_t prim = ids[e.tri_id_first + t];
-          if (pt.size() <= prim) pt.resize(size_t(prim) + 1);
-          pt[prim] = {ci, k, t};
-        }
+        for (uint32_t t = 0; t < e.triangle_count; ++t) m.per_tri.push_back({{e.mesh, ids[e.tri_id_first + t]}, {ci, k, t}});
       }
     }
     m.chunks.push_back(std::move(c));
+  }
+  // Sorted by key; for a key stored twice the last one stored wins (as the direct tables did).
+  for (auto* v : {&m.whole, &m.per_tri}) {
+    std::stable_sort(v->begin(), v->end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    auto last = std::unique(v->rbegin(), v->rend(), [](const auto& a, const auto& b) { return a.first == b.first; });
+    v->erase(v->begin(), last.base());
   }
 }
 

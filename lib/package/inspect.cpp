@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
+#include "package/check_chunks.h"
 #include "package/chunk_io.h"
 
 namespace rtp {
@@ -56,6 +57,42 @@ void guarded(Ctx& c, F&& f) {
   } catch (const Error& e) {
     if (e.code() == ExitCode::kInputIo) throw;
     c.problems.add(e.what());
+  }
+}
+
+// The structural checks of the resident chunks against each other (check_chunks.h). A mesh table
+// whose triangle counts the source map does not back is dropped, so no check allocates by them.
+void check_resident(Ctx& c) {
+  Resident& res = c.res;
+  uint64_t segments = 0;
+  for (const fmt::TocEntry& e : c.r.toc()) segments += e.kind == uint32_t(ChunkKind::kMeshSegment);
+  if (res.meshes_ok) {
+    bool ok = false;
+    guarded(c, [&] {
+      if (!res.source_ok) fail_invalid(res.meshes_label + ": no readable source map backs its triangle counts");
+      check_mesh_table(res.meshes.data(), res.meshes.size(), res.source_prims.size(), res.source_tris.size(), segments,
+                       res.meshes_label);
+      ok = true;
+    });
+    if (!ok) {
+      res.meshes_ok = false;
+      res.meshes.clear();
+    }
+  }
+  if (res.instances_ok)
+    guarded(c, [&] {
+      check_instance_table(res.instances.data(), res.instances.size(), res.meshes_ok ? res.meshes.size() : kUnknownCount,
+                           res.instances_label);
+    });
+  if (res.descs_ok)
+    guarded(c, [&] { check_point_descs(res.descs.data(), res.descs.size(), res.segment_refs.size(), res.descs_label); });
+  if (res.top_ok) {
+    bool ok = false;
+    guarded(c, [&] {
+      check_top_level(res.top.data(), res.top.size(), res.descs_ok ? res.descs.size() : kUnknownCount, res.top_label);
+      ok = true;
+    });
+    res.top_ok = ok;
   }
 }
 
@@ -125,6 +162,7 @@ void read_resident(Ctx& c) {
       }
     });
   }
+  check_resident(c);
 }
 
 // The image of `b` under the row-major 3x4 `m`, in double, with a tolerance per axis of two float
@@ -147,20 +185,15 @@ ItemBound transformed(const float m[12], const Box3d& b) {
   return out;
 }
 
-bool entry_in_range(Ctx& c, const fmt::MeshEntry& e, uint64_t nn, uint64_t nb, const std::string& what) {
-  if (uint64_t(e.node_first) + e.node_count <= nn && uint64_t(e.block_first) + e.block_count <= nb) return true;
-  c.problems.add(what + ": node or block range outside the chunk's sections");
-  return false;
-}
-
 template <int W, int B>
 void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   const std::string label = c.label(i);
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kMeshSegment), label);
-  uint64_t ne = 0, nn = 0, nb = 0;
-  const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(SectionType::kMeshEntries, ne);
-  const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(SectionType::kNodes, nn);
-  const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(SectionType::kBlocks, nb);
+  const GeometrySections<W, B> geo = decode_segment<W, B>(v);  // throws: the chunk becomes a problem
+  const uint64_t ne = geo.n_entries;
+  const fmt::MeshEntry* e = geo.entries;
+  const fmt::WideNode<W>* nodes = geo.nodes;
+  const fmt::LeafBlock<B>* blocks = geo.blocks;
   SegmentData sd;
   sd.id = c.r.toc()[i].id;
   sd.label = label;
@@ -171,7 +204,6 @@ void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   for (uint64_t k = 0; k < ne; ++k) {
     const std::string what = label + ": mesh " + std::to_string(e[k].id);
     tris += e[k].triangles;
-    if (!entry_in_range(c, e[k], nn, nb, what)) continue;
     BvhCheck ck;
     ck.label = what;
     if (c.ver) ck.problems = &c.problems, ck.prims = &sd.prims[k];
@@ -194,13 +226,15 @@ template <int W, int B>
 void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   const std::string label = c.label(i);
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kBatchingPoint), label);
-  uint64_t n_te = 0, n_in = 0, n_ids = 0, ne = 0, nn = 0, nb = 0;
-  const fmt::MeshEntry* te = v.get<fmt::MeshEntry>(SectionType::kInstanceBvh, n_te);
-  const fmt::WideNode<W>* inodes = v.get<fmt::WideNode<W>>(SectionType::kInstanceNodes, n_in);
-  const uint32_t* ids = v.get<uint32_t>(SectionType::kInstanceIds, n_ids);
-  const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(SectionType::kMeshEntries, ne);
-  const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(SectionType::kNodes, nn);
-  const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(SectionType::kBlocks, nb);
+  // Throws (the chunk becomes a problem) unless every index and range a walk follows is sound.
+  const PointSections<W, B> sec = decode_point<W, B>(v, c.res.instances_ok ? c.res.instances.size() : kUnknownCount);
+  const uint64_t n_te = 1, n_in = sec.n_instance_nodes, n_ids = sec.n_instance_ids, ne = sec.n_entries;
+  const fmt::MeshEntry* te = sec.instance_bvh;
+  const fmt::WideNode<W>* inodes = sec.instance_nodes;
+  const uint32_t* ids = sec.instance_ids;
+  const fmt::MeshEntry* e = sec.entries;
+  const fmt::WideNode<W>* nodes = sec.nodes;
+  const fmt::LeafBlock<B>* blocks = sec.blocks;
   PointData pd;
   pd.id = c.r.toc()[i].id;
   pd.label = label;
@@ -219,7 +253,6 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   for (uint64_t k = 0; k < ne; ++k) {
     const std::string what = label + ": piece " + std::to_string(e[k].id) + " (entry " + std::to_string(k) + ")";
     unique += e[k].triangles;
-    if (!entry_in_range(c, e[k], nn, nb, what)) continue;
     BvhCheck ck;
     ck.label = what;
     if (c.ver) ck.problems = &c.problems, ck.prims = &pd.piece_prims[k];

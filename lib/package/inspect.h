@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -193,6 +194,7 @@ class Verifier {
 
  private:
   void check_toc();
+  void check_padding();
   void check_tables();
   void check_top();
   const PackageReader& r_;
@@ -201,7 +203,7 @@ class Verifier {
   std::vector<uint32_t> instance_seen_;              // per scene instance: as a non-piece instance
   std::vector<std::vector<uint8_t>> unique_cover_;   // per scene instance of a unique mesh: per triangle
   std::vector<uint8_t> mesh_in_segment_;             // per mesh: entries in segments
-  std::vector<uint8_t> piece_seen_;                  // per piece id
+  std::map<uint32_t, uint32_t> piece_seen_;         // piece id -> times stored
   AttributeChecker attrs_;
   uint64_t pieces_ = 0, segments_ = 0, points_ = 0;
 };

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "package/check_chunks.h"
 #include "package/chunk_io.h"
 #include "package/inspect.h"
 
@@ -54,20 +55,13 @@ void AttributeChecker::chunk(uint32_t kind, uint64_t id, const std::string& labe
     for (uint64_t k = 0; k < ne; ++k) {
       const fmt::AttributeEntry& a = e[k];
       const std::string what = label + ": entry " + str(k) + " (id " + str(a.id) + ")";
-      if (a.triangle_first + a.triangle_count > nt) {
-        out.add(what + ": triangles outside the section");
+      const std::string ranges = attribute_entry_ranges(a, nt, nn, nu, ni);  // 64-bit safe
+      if (!ranges.empty()) {
+        out.add(what + ": " + ranges);
         continue;
       }
       const bool has_n = a.normal_first != fmt::kNoAttribute, has_uv = a.uv_first != fmt::kNoAttribute;
       if (a.triangle_count && !has_n && !has_uv) out.add(what + ": triangles but neither normals nor uvs");
-      if (has_n && uint64_t(a.normal_first) + a.vertex_count > nn) {
-        out.add(what + ": normals outside the section");
-        continue;
-      }
-      if (has_uv && uint64_t(a.uv_first) + a.vertex_count > nu) {
-        out.add(what + ": uvs outside the section");
-        continue;
-      }
       for (uint64_t t = 0; t < a.triangle_count; ++t)
         for (uint32_t i : tri[a.triangle_first + t]) bad_idx += i >= a.vertex_count;
       for (uint32_t i = 0; has_n && i < a.vertex_count; ++i) {
@@ -78,10 +72,6 @@ void AttributeChecker::chunk(uint32_t kind, uint64_t id, const std::string& labe
       for (uint32_t i = 0; has_uv && i < a.vertex_count; ++i)
         bad_uv += !(std::isfinite(uv[a.uv_first + i][0]) && std::isfinite(uv[a.uv_first + i][1]));
       if (a.tri_id_first != fmt::kNoAttribute) {
-        if (uint64_t(a.tri_id_first) + a.triangle_count > ni) {
-          out.add(what + ": triangle ids outside the section");
-          continue;
-        }
         std::vector<uint32_t> p(ids + a.tri_id_first, ids + a.tri_id_first + a.triangle_count);
         for (size_t t = 1; t < p.size(); ++t)
           if (p[t] <= p[t - 1]) {

@@ -1,10 +1,12 @@
 // rtpack-inspect --verify: the cross-chunk invariants of formats/SPEC.md §3–§4 (the in-BVH ones are
 // checked by the walk in inspect_stats.cpp). Every failure names its chunk (chunk_label) and object.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <set>
 #include <string>
 
+#include "package/check_chunks.h"
 #include "package/inspect.h"
 
 namespace rtp::inspect_detail {
@@ -85,6 +87,7 @@ void Verifier::check_toc() {
   bool reserved = (h.flags & ~(fmt::kFlagNormals | fmt::kFlagUvs | fmt::kFlagDag)) != 0;
   for (uint8_t b : h.reserved) reserved |= b != 0;
   if (reserved) out_.add("header: flags or reserved bytes are not 0");
+  check_padding();
   const auto& toc = r_.toc();
   std::set<std::pair<uint32_t, uint64_t>> seen;
   for (size_t i = 0; i < toc.size(); ++i) {
@@ -102,6 +105,33 @@ void Verifier::check_toc() {
   for (size_t i = 0; i < toc.size(); ++i)
     if (toc[i].kind == uint32_t(ChunkKind::kMeshSegment) && toc[i].id >= segments_)
       out_.add(chunk_label(toc[i], i) + ": segment ids are not 0.." + str(segments_ - 1));
+}
+
+// The bytes no checksum covers (SPEC §1): the header block after the 128-byte header, the padding
+// between chunks up to each 4 KiB boundary, and nothing after the table of contents. All zeros.
+void Verifier::check_padding() {
+  const fmt::Header& h = r_.header();
+  auto zeros = [&](uint64_t from, uint64_t to, const std::string& what) {
+    if (to <= from) return;
+    const uint64_t at = r_.first_nonzero(from, to - from);
+    if (at != PackageReader::kAllZero) out_.add(what + ": byte " + str(at) + " of the file is not 0");
+  };
+  zeros(sizeof(fmt::Header), fmt::kAlignment, "header block padding (bytes 128..4095)");
+  std::vector<std::pair<uint64_t, size_t>> order;  // (offset, toc index)
+  for (size_t i = 0; i < r_.toc().size(); ++i) order.push_back({r_.toc()[i].offset, i});
+  std::sort(order.begin(), order.end());
+  uint64_t end = fmt::kAlignment;
+  std::string after = "the header block";
+  for (const auto& [offset, i] : order) {
+    const fmt::TocEntry& e = r_.toc()[i];
+    if (offset < end) out_.add(chunk_label(e, i) + ": overlaps " + after);
+    else zeros(end, offset, "padding after " + after);
+    end = std::max(end, offset + e.stored_size);
+    after = chunk_label(e, i);
+  }
+  zeros(end, h.toc_offset, "padding after " + after);
+  const uint64_t toc_end = h.toc_offset + h.toc_count * h.toc_entry_size;
+  if (toc_end != h.file_size) out_.add("file: " + str(h.file_size - toc_end) + " bytes after the table of contents");
 }
 
 void Verifier::check_tables() {
@@ -139,8 +169,8 @@ void Verifier::check_tables() {
       if (mi.segment != kNone && mi.segment >= segments_)
         out_.add(what + ": segment " + str(mi.segment) + " out of range (" + str(segments_) + " segments)");
       if (!res_.source_ok) continue;
-      if (uint64_t(mi.source_prim_first) + mi.source_prim_count > res_.source_prims.size() ||
-          mi.source_tri_first + mi.triangles > res_.source_tris.size()) {
+      if (!range_inside(mi.source_prim_first, mi.source_prim_count, res_.source_prims.size()) ||
+          !range_inside(mi.source_tri_first, mi.triangles, res_.source_tris.size())) {
         out_.add(res_.source_label + ": mesh " + str(m) + ": source map range outside the section");
         continue;
       }
@@ -164,7 +194,7 @@ void Verifier::check_tables() {
       const std::string what = res_.descs_label + ": batching point " + str(p);
       if (d.chunk_id != p) out_.add(what + ": chunk id " + str(d.chunk_id) + " is not its index");
       if (r_.find(ChunkKind::kBatchingPoint, d.chunk_id) < 0) out_.add(what + ": its chunk is missing");
-      if (uint64_t(d.segment_first) + d.segment_count > res_.segment_refs.size()) {
+      if (!range_inside(d.segment_first, d.segment_count, res_.segment_refs.size())) {
         out_.add(what + ": segment range outside the section");
         continue;
       }
@@ -363,7 +393,6 @@ void Verifier::point(const PointData& p) {
     if (e.triangles != p.piece_prims[k].size())
       out_.add(L + ": piece " + str(e.id) + " (entry " + str(k) + "): says " + str(e.triangles) + " triangles, its leaves hold " +
                str(p.piece_prims[k].size()));
-    if (piece_seen_.size() <= e.id) piece_seen_.resize(size_t(e.id) + 1, 0);
     if (piece_seen_[e.id]++) out_.add(L + ": piece " + str(e.id) + " is stored a second time");
     ++pieces_;
   }
@@ -405,8 +434,17 @@ void Verifier::finish() {
   for (size_t m = 0; m < res_.meshes.size(); ++m)
     if ((res_.meshes[m].flags & 1u) && mesh_in_segment_[m] != 1)
       out_.add(res_.meshes_label + ": mesh " + str(m) + " is stored " + str(mesh_in_segment_[m]) + " times in mesh segments");
-  for (size_t k = 0; k < piece_seen_.size(); ++k)
-    if (!piece_seen_[k]) out_.add("piece " + str(k) + " is in no batching point");
+  // Piece ids are 0..pieces-1: the ids seen are a map (a hostile id costs one entry, not 4 GB), and the
+  // missing ones are one message (count and first), not one per id.
+  uint64_t expect = 0, missing_ids = 0, first_missing = 0;
+  for (const auto& [id, n] : piece_seen_) {
+    if (id > expect && !missing_ids) first_missing = expect;
+    missing_ids += id - expect;
+    expect = uint64_t(id) + 1;
+  }
+  if (missing_ids)
+    out_.add(str(missing_ids) + (missing_ids == 1 ? " piece id is" : " piece ids are") + " in no batching point (first: " +
+             str(first_missing) + "; the highest id stored is " + str(expect - 1) + ")");
   if (res_.meta_ok && res_.meta.contains("pieces") && res_.meta["pieces"] != pieces_)
     out_.add(res_.meta_label + ": \"pieces\" is " + res_.meta["pieces"].dump() + ", the batching points hold " + str(pieces_));
 }

@@ -1,5 +1,5 @@
 #pragma once
-// The .rtp container: a streaming writer (temporary file, atomic rename, 4 KiB-aligned zstd chunks
+// The .rtp container: a streaming writer (unnamed file linked into place, 4 KiB-aligned zstd chunks
 // with CRC-32C) and a verifying reader (pread, optional O_DIRECT). The chunk *contents* are defined
 // by the modules that produce them; this module only stores, finds and checks bytes.
 #include <cstdint>
@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/aligned.h"
+#include "core/output_file.h"  // check_output_path, OutputFile
 #include "formats/package.h"
 
 namespace rtp {
@@ -20,16 +21,12 @@ uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
 std::string chunk_label(const fmt::TocEntry& e, size_t toc_index);
 const char* chunk_kind_name(uint32_t kind);
 
-// Checks before any work that `path` can be written: its directory exists and is writable, it is
-// not a directory, and an existing file there is writable. Throws Error(kOutput).
-void check_output_path(const std::string& path);
-
 class PackageWriter {
  public:
-  // Creates `<path>.tmp-<pid>` next to `path`; nothing appears at `path` before finish().
-  // Throws Error(kOutput) when the directory is not writable.
+  // Writes through an OutputFile (core/output_file.h): nothing appears at `path` before finish(),
+  // and no temporary name is left by any failure or signal. Throws Error(kOutput) when it cannot.
   explicit PackageWriter(const std::string& path, int zstd_level = 9);
-  ~PackageWriter();  // without finish(): removes the temporary file
+  ~PackageWriter();  // without finish(): nothing appears at the path
   PackageWriter(const PackageWriter&) = delete;
   PackageWriter& operator=(const PackageWriter&) = delete;
 
@@ -42,7 +39,7 @@ class PackageWriter {
   const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
                                   fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
-  // `header`), flushes, and renames the temporary file to `path`.
+  // `header`), flushes, and puts the file at `path` (atomically replacing a previous one).
   void finish(fmt::Header header);
 
   uint64_t bytes_written() const { return offset_; }  // after finish(): the file size
@@ -50,8 +47,7 @@ class PackageWriter {
 
  private:
   void write_at(uint64_t offset, const void* data, size_t size);
-  std::string path_, tmp_;
-  int fd_ = -1;
+  OutputFile out_;
   int level_;
   uint64_t offset_ = fmt::kAlignment;
   std::vector<fmt::TocEntry> toc_;
@@ -60,7 +56,7 @@ class PackageWriter {
 
 class PackageReader {
  public:
-  // Opens and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
+  // Opens (never blocking: a FIFO or any other non-regular file is rejected, exit 3) and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
   // and 4 KiB aligned). Throws Error(kInputInvalid) naming what is wrong; kInputIo when unreadable.
   explicit PackageReader(const std::string& path, bool direct_io = false);
   ~PackageReader();
@@ -78,6 +74,14 @@ class PackageReader {
   AlignedBytes read(size_t index) const;
   // Reads and checks the CRC only (no decompression).
   void verify(size_t index) const;
+  // The offset of the first non-zero byte of [offset, offset + size) of the file, or kAllZero.
+  static constexpr uint64_t kAllZero = ~uint64_t(0);
+  uint64_t first_nonzero(uint64_t offset, uint64_t size) const;
+
+  // A chunk's raw_size is at most kMaxChunkRatio * stored_size + kMaxChunkSlack (formats/SPEC.md §3):
+  // checked before any memory is committed. The writer's chunks stay far below (rtpack-inspect: ratio).
+  static constexpr uint64_t kMaxChunkRatio = 1024;
+  static constexpr uint64_t kMaxChunkSlack = uint64_t(1) << 20;
 
  private:
   AlignedBytes read_stored(size_t index) const;

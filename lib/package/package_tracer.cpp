@@ -11,6 +11,7 @@
 #include "formats/chunk.h"
 #include "formats/dag.h"
 #include "formats/top_level.h"
+#include "package/check_chunks.h"
 #include "package/chunk_io.h"
 #include "voxel/voxel.h"
 
@@ -54,25 +55,31 @@ class Tracer final : public PackageTracer {
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kTopLevelBvh), labels_.back());
       top_ = v.get<fmt::TopNode>(fmt::SectionType::kTopNodes, top_count_, true);
     }
-    uint64_t n_points = 0;
+    uint64_t n_points = 0, n_refs = 0, n_instances = 0;
     const fmt::BatchingPointDesc* descs;
     const AlignedBytes& db = load(fmt::ChunkKind::kBatchingPoints, 0);
     ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), labels_.back());
     descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n_points);
+    dv.get<uint32_t>(fmt::SectionType::kSegmentRefs, n_refs);
+    check_point_descs(descs, n_points, n_refs, dv.label());
+    check_top_level(top_, top_count_, n_points, labels_[0]);
     load_dags(r, dv, n_points, load);
+    {  // only its size: hits report scene instance ids, which must be in range
+      const AlignedBytes& b = load(fmt::ChunkKind::kInstances, 0);
+      ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), labels_.back());
+      v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n_instances);
+      chunks_.back() = AlignedBytes();
+    }
     // Segments: mesh id -> view.
     std::map<uint32_t, MeshBvhView<W, B>> segment_meshes;
     for (size_t i = 0; i < toc.size(); ++i) {
       if (toc[i].kind != uint32_t(fmt::ChunkKind::kMeshSegment)) continue;
       const AlignedBytes& b = load(fmt::ChunkKind::kMeshSegment, toc[i].id);
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMeshSegment), labels_.back());
-      uint64_t ne, nn, nb;
-      const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(fmt::SectionType::kMeshEntries, ne);
-      const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kNodes, nn);
-      const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(fmt::SectionType::kBlocks, nb);
-      for (uint64_t k = 0; k < ne; ++k) {
-        check_entry(e[k], nn, nb, labels_.back());
-        segment_meshes[e[k].id] = {nodes + e[k].node_first, blocks + e[k].block_first, e[k].root};
+      const GeometrySections<W, B> g = decode_segment<W, B>(v);
+      for (uint64_t k = 0; k < g.n_entries; ++k) {
+        const fmt::MeshEntry& e = g.entries[k];
+        segment_meshes[e.id] = {g.nodes + e.node_first, g.blocks + e.block_first, e.root};
       }
     }
     points_.resize(n_points);
@@ -81,45 +88,23 @@ class Tracer final : public PackageTracer {
       const std::string& label = labels_.back();
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
       Point<W, B>& pt = points_[p];
-      uint64_t n_te, n_in, n_ids, n_rec, n_gid, n_slot, ne, nn, nb;
-      const fmt::MeshEntry* te = v.get<fmt::MeshEntry>(fmt::SectionType::kInstanceBvh, n_te);
-      const fmt::WideNode<W>* inodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kInstanceNodes, n_in);
-      const uint32_t* ids = v.get<uint32_t>(fmt::SectionType::kInstanceIds, n_ids);
-      const fmt::InstanceRecord* rec = v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n_rec);
-      pt.global_ids = v.get<uint32_t>(fmt::SectionType::kGlobalIds, n_gid);
-      const uint32_t* slots = v.get<uint32_t>(fmt::SectionType::kMeshSlots, n_slot);
-      const fmt::MeshEntry* e = v.get<fmt::MeshEntry>(fmt::SectionType::kMeshEntries, ne);
-      const fmt::WideNode<W>* nodes = v.get<fmt::WideNode<W>>(fmt::SectionType::kNodes, nn);
-      const fmt::LeafBlock<B>* blocks = v.get<fmt::LeafBlock<B>>(fmt::SectionType::kBlocks, nb);
-      if (n_te != 1 || n_gid != n_rec || te[0].node_count != n_in || te[0].block_count != n_ids)
-        fail_invalid(label + ": instance table sizes disagree");
-      for (uint64_t k = 0; k < n_ids; ++k)
-        if (ids[k] >= n_rec) fail_invalid(label + ": instance BVH references instance " + std::to_string(ids[k]));
-      for (uint64_t k = 0; k < n_rec; ++k)
-        if (rec[k].mesh >= n_slot) fail_invalid(label + ": instance " + std::to_string(k) + " has no mesh slot");
-      for (uint64_t k = 0; k < ne; ++k) check_entry(e[k], nn, nb, label);
-      pt.meshes.resize(n_slot);
-      for (uint64_t s = 0; s < n_slot; ++s) {
-        if (slots[s] & fmt::kPieceBit) {
-          const uint32_t k = slots[s] & ~fmt::kPieceBit;
-          if (k >= ne) fail_invalid(label + ": mesh slot " + std::to_string(s) + " names a missing piece");
-          pt.meshes[s] = {nodes + e[k].node_first, blocks + e[k].block_first, e[k].root};
+      const PointSections<W, B> s = decode_point<W, B>(v, n_instances);
+      pt.global_ids = s.global_ids;
+      pt.meshes.resize(s.n_slots);
+      for (uint64_t k = 0; k < s.n_slots; ++k) {
+        if (s.slots[k] & fmt::kPieceBit) {
+          const fmt::MeshEntry& e = s.entries[s.slots[k] & ~fmt::kPieceBit];
+          pt.meshes[k] = {s.nodes + e.node_first, s.blocks + e.block_first, e.root};
         } else {
-          auto it = segment_meshes.find(slots[s]);
-          if (it == segment_meshes.end()) fail_invalid(label + ": mesh " + std::to_string(slots[s]) + " is in no segment");
-          pt.meshes[s] = it->second;
+          auto it = segment_meshes.find(s.slots[k]);
+          if (it == segment_meshes.end())
+            fail_invalid(label + ": mesh slot " + std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) + " is in no segment");
+          pt.meshes[k] = it->second;
         }
       }
-      pt.view = {inodes, te[0].root, ids, rec, pt.meshes.data()};
-      pt.instance_count = n_rec;
+      pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data()};
+      pt.instance_count = s.n_records;
     }
-    for (uint64_t n = 0; n < top_count_; ++n)
-      for (int l = 0; l < 4; ++l) {
-        const uint32_t c = top_[n].child[l];
-        if (c == fmt::TopNode::kEmpty) continue;
-        if ((c & fmt::TopNode::kLeafBit) ? (c & ~fmt::TopNode::kLeafBit) >= n_points : c >= top_count_ || c <= n)
-          fail_invalid(labels_[0] + ": node " + std::to_string(n) + " lane " + std::to_string(l) + " out of range");
-      }
   }
 
   uint64_t batching_points() const override { return points_.size(); }
@@ -223,11 +208,6 @@ class Tracer final : public PackageTracer {
     if (double(t) > h.t_entry) t = std::nextafter(t, -kInf);
     if (t > ray.tnear) ray.tnear = t;
     return true;
-  }
-
-  static void check_entry(const fmt::MeshEntry& e, uint64_t nn, uint64_t nb, const std::string& label) {
-    if (uint64_t(e.node_first) + e.node_count > nn || uint64_t(e.block_first) + e.block_count > nb)
-      fail_invalid(label + ": BVH of mesh " + std::to_string(e.id) + " out of bounds");
   }
 
   // Front-to-back over the top level: lanes sorted by entry distance, skipped once beyond ray.tfar

@@ -5,11 +5,13 @@
 #include <unistd.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "package/package.h"
 
 namespace rtp {
@@ -46,13 +48,9 @@ std::string chunk_label(const fmt::TocEntry& e, size_t i) {
 }
 
 PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(path) {
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | (direct_io ? O_DIRECT : 0));
-  if (fd_ < 0 && direct_io && errno == EINVAL) fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);  // no O_DIRECT here
-  else direct_ = direct_io;
-  if (fd_ < 0) throw Error(ExitCode::kInputIo, "cannot open '" + path + "': " + std::strerror(errno));
-  struct stat st{};
-  if (::fstat(fd_, &st) != 0) throw Error(ExitCode::kInputIo, "cannot stat '" + path + "'");
-  file_size_ = uint64_t(st.st_size);
+  // A regular file only (a directory, FIFO or device gets a clear message; a FIFO never blocks).
+  fd_ = open_input_file(path, "", direct_io ? O_DIRECT : 0, &file_size_);
+  direct_ = direct_io && (::fcntl(fd_, F_GETFL) & O_DIRECT);  // false where O_DIRECT is refused
   if (file_size_ < fmt::kAlignment)
     fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
                  std::to_string(fmt::kAlignment) + "-byte header block");
@@ -77,8 +75,8 @@ PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(pa
     fail_invalid("truncated file: header says " + std::to_string(header_.file_size) + " bytes, the file has " +
                  std::to_string(file_size_));
   if (header_.toc_entry_size < sizeof(fmt::TocEntry) || header_.toc_offset % fmt::kAlignment ||
-      header_.toc_offset < fmt::kAlignment || header_.toc_count > (file_size_ / header_.toc_entry_size) ||
-      header_.toc_offset + header_.toc_count * header_.toc_entry_size > file_size_)
+      header_.toc_offset < fmt::kAlignment || header_.toc_offset > file_size_ || header_.toc_count > (file_size_ / header_.toc_entry_size) ||
+      header_.toc_count * header_.toc_entry_size > file_size_ - header_.toc_offset)
     fail_invalid("table of contents out of bounds (offset " + std::to_string(header_.toc_offset) + ", " +
                  std::to_string(header_.toc_count) + " entries)");
   // Read the TOC (the entries may be longer than ours in a newer minor version: keep our prefix).
@@ -166,14 +164,68 @@ AlignedBytes PackageReader::read(size_t index) const {
   }
   if (e.compression != uint32_t(fmt::Compression::kZstd))
     fail_invalid(chunk_label(e, index) + ": unknown compression " + std::to_string(e.compression));
+  // The frame's declared size must equal the TOC's raw size, and neither is believed before the bytes
+  // exist: the output buffer grows with what the frame really decodes to (never more than 2x of it),
+  // so a small frame declaring gigabytes fails after a few megabytes, not after allocating them;
+  // and raw_size is capped by kMaxChunkRatio times the stored size.
   const unsigned long long declared = ZSTD_getFrameContentSize(stored.data(), stored.size());
-  if (declared != e.raw_size) fail_invalid(chunk_label(e, index) + ": zstd frame size disagrees with the table of contents");
-  AlignedBytes out(e.raw_size);
-  const size_t n = ZSTD_decompress(out.data(), out.size(), stored.data(), stored.size());
-  if (ZSTD_isError(n) || n != e.raw_size)
-    fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" +
-                 (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short") + ")");
+  if (declared != e.raw_size)
+    fail_invalid(chunk_label(e, index) + ": zstd frame declares " +
+                 (declared == ZSTD_CONTENTSIZE_UNKNOWN ? std::string("no size")
+                  : declared == ZSTD_CONTENTSIZE_ERROR ? std::string("an invalid header")
+                                                       : std::to_string(declared) + " bytes") +
+                 ", the table of contents raw_size " + std::to_string(e.raw_size));
+  if (e.raw_size > kMaxChunkRatio * e.stored_size + kMaxChunkSlack)
+    fail_invalid(chunk_label(e, index) + ": raw_size " + std::to_string(e.raw_size) + " is more than " +
+                 std::to_string(kMaxChunkRatio) + " times the " + std::to_string(e.stored_size) +
+                 " stored bytes (the limit of formats/SPEC.md §3)");
+  ZSTD_DCtx* dctx = ZSTD_createDCtx();
+  if (!dctx) throw std::bad_alloc();
+  AlignedBytes out;
+  ZSTD_inBuffer in{stored.data(), stored.size(), 0};
+  size_t done = 0, ret = 1;
+  std::string error;
+  while (ret != 0) {
+    if (done == out.size()) {
+      if (out.size() == e.raw_size) {
+        error = "the frame decodes to more than raw_size";
+        break;
+      }
+      // First 16x the stored bytes (at least 1 MiB: most chunks fit at once), then doubling.
+      const uint64_t want = std::max<uint64_t>({uint64_t(1) << 20, 16 * e.stored_size, 2 * uint64_t(out.size())});
+      out.resize(size_t(std::min<uint64_t>(e.raw_size, want)));
+    }
+    ZSTD_outBuffer ob{out.data(), out.size(), done};
+    ret = ZSTD_decompressStream(dctx, &ob, &in);
+    done = ob.pos;
+    if (ZSTD_isError(ret)) {
+      error = ZSTD_getErrorName(ret);
+      break;
+    }
+    if (ret != 0 && in.pos == in.size && ob.pos < ob.size) {
+      error = "the frame ends early";
+      break;
+    }
+  }
+  ZSTD_freeDCtx(dctx);
+  if (error.empty() && (done != e.raw_size || in.pos != in.size)) error = "short";
+  if (!error.empty()) fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" + error + ")");
   return out;
+}
+
+uint64_t PackageReader::first_nonzero(uint64_t offset, uint64_t size) const {
+  std::vector<uint8_t> buf(size_t(std::min<uint64_t>(size, uint64_t(1) << 20)));
+  for (uint64_t done = 0; done < size;) {
+    const size_t want = size_t(std::min<uint64_t>(buf.size(), size - done));
+    const ssize_t n = ::pread(fd_, buf.data(), want, off_t(offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(ExitCode::kInputIo, "read error at offset " + std::to_string(offset + done) + ": " + std::strerror(errno));
+    if (n == 0) return offset + done;  // past the end: not zeros
+    for (ssize_t k = 0; k < n; ++k)
+      if (buf[size_t(k)]) return offset + done + uint64_t(k);
+    done += uint64_t(n);
+  }
+  return kAllZero;
 }
 
 }  // namespace rtp

@@ -1,62 +1,23 @@
-// Streaming package writer: chunks go to a temporary file as they come, each zstd-compressed,
-// CRC-32C checksummed and 4 KiB aligned; the TOC and header are written last; the file appears at
-// its path only through an atomic rename once complete.
-#include <fcntl.h>
-#include <unistd.h>
+// Streaming package writer: chunks go to an unnamed output file (core/output_file.h) as they come,
+// each zstd-compressed, CRC-32C checksummed and 4 KiB aligned; the TOC and header are written last;
+// the file appears at its path only once complete.
 #include <zstd.h>
 
-#include <cerrno>
 #include <cstring>
-#include <filesystem>
 
 #include "core/error.h"
 #include "package/package.h"
 
 namespace rtp {
 
-void check_output_path(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (path.empty()) throw Error(ExitCode::kOutput, "no output path");
-  if (fs::is_directory(path, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': it is a directory");
-  const fs::path dir = fs::absolute(path, ec).parent_path();
-  if (!fs::is_directory(dir, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': no directory " + dir.string());
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw Error(ExitCode::kOutput, "cannot write '" + path + "': directory " + dir.string() + " is not writable");
-  if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
-    throw Error(ExitCode::kOutput, "cannot write '" + path + "': the existing file is not writable");
-}
-
-PackageWriter::PackageWriter(const std::string& path, int zstd_level) : path_(path), level_(zstd_level) {
-  namespace fs = std::filesystem;
+PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(path), level_(zstd_level) {
   if (zstd_level < 0 || zstd_level > ZSTD_maxCLevel())
     throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be 0.." + std::to_string(ZSTD_maxCLevel()));
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': it is a directory");
-  const fs::path dir = fs::absolute(path, ec).parent_path();
-  if (!fs::is_directory(dir, ec)) throw Error(ExitCode::kOutput, "cannot write '" + path + "': no directory " + dir.string());
-  tmp_ = path + ".tmp-" + std::to_string(::getpid());
-  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw Error(ExitCode::kOutput, "cannot write '" + path + "': " + std::strerror(errno));
 }
 
-PackageWriter::~PackageWriter() {
-  if (fd_ >= 0) ::close(fd_);
-  if (!finished_) ::unlink(tmp_.c_str());
-}
+PackageWriter::~PackageWriter() = default;
 
-void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) {
-  const char* p = static_cast<const char*>(data);
-  while (size) {
-    const ssize_t n = ::pwrite(fd_, p, size, off_t(offset));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw Error(ExitCode::kOutput, "cannot write '" + tmp_ + "': " + std::strerror(errno));
-    p += n;
-    size -= size_t(n);
-    offset += uint64_t(n);
-  }
-}
-
+void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { out_.write_at(offset, data, size); }
 std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used) {
   used = fmt::Compression::kNone;
   if (level > 0 && size > 0) {
@@ -110,12 +71,8 @@ void PackageWriter::finish(fmt::Header h) {
   std::vector<uint8_t> block(fmt::kAlignment, 0);  // the whole first block: header + zeros
   std::memcpy(block.data(), &h, sizeof h);
   write_at(0, block.data(), block.size());
-  if (::ftruncate(fd_, off_t(h.file_size)) != 0 || ::fsync(fd_) != 0)
-    throw Error(ExitCode::kOutput, "cannot write '" + tmp_ + "': " + std::strerror(errno));
-  ::close(fd_);
-  fd_ = -1;
-  if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
-    throw Error(ExitCode::kOutput, "cannot rename '" + tmp_ + "' to '" + path_ + "': " + std::strerror(errno));
+  out_.set_size(h.file_size);
+  out_.commit();
   finished_ = true;
   offset_ = h.file_size;  // bytes_written() is now the whole file, TOC included
 }

@@ -31,10 +31,12 @@ struct [[gnu::visibility("hidden")]] Document {
   std::vector<std::string> warnings;
 };
 
-// Reads the file, checks the container (.glb header and chunks, file size), parses and validates
+// Reads the file (a regular file only), checks the container (.glb header and chunks, file size), parses and validates
 // the JSON (references, ranges, cycles, required extensions), decodes EXT_meshopt_compression
 // buffer views and lets tinygltf (with Draco) build the model.
-Document load_document(const std::string& path);
+// External buffers must resolve (after percent-decoding, `..` and symbolic links) inside the glTF's
+// directory or one of `allowed_dirs`; only regular files are read, and only once their size is checked.
+Document load_document(const std::string& path, const std::vector<std::string>& allowed_dirs = {});
 
 // Validation of the JSON alone (before tinygltf sees it). `buffer_sizes` are the real byte sizes
 // of each buffer's data where known (external file, data URI, BIN chunk), or -1.

@@ -44,7 +44,7 @@ void check_float_bounds(const Scene& scene) {
 
 Scene import_gltf(const std::string& path, const ImportOptions& options) {
   using std::to_string;
-  gltf::Document doc = gltf::load_document(path);
+  gltf::Document doc = gltf::load_document(path, options.allowed_dirs);
   Scene scene;
   scene.source_path = path;
   const int n_scenes = int(doc.model.scenes.size());

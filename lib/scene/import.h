@@ -3,6 +3,7 @@
 // sparse accessors and EXT_mesh_gpu_instancing. Throws rtp::Error naming the JSON pointer on bad input.
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "scene/scene.h"
 
@@ -13,6 +14,8 @@ struct ImportOptions {
   // Optional vertex attributes (Mesh::normals / Mesh::uvs). Off by default: store no more than asked.
   bool normals = false;  // glTF NORMAL (float or normalized byte/short, KHR_mesh_quantization)
   bool uvs = false;      // glTF TEXCOORD_0 (float or normalized unsigned byte/short)
+  // Directories besides the glTF's own from which external buffers may be read (--allow-path).
+  std::vector<std::string> allowed_dirs;
   std::function<void(const std::string&)> on_warning;  // also collected in Scene::warnings
 };
 

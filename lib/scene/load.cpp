@@ -1,14 +1,17 @@
 // Reading a glTF file: container checks, JSON validation, meshopt fallback buffers, tinygltf + Draco.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
+#include <map>
 #include <set>
-#include <sstream>
 
 #include "core/error.h"
 #include "core/json_checked.h"
+#include "core/input_file.h"
 #include "scene/gltf_internal.h"
 
 namespace rtp::gltf {
@@ -22,20 +25,17 @@ constexpr uint32_t kChunkJson = 0x4E4F534A;
 constexpr uint32_t kChunkBin = 0x004E4942;
 constexpr uint64_t k4GiB = 1ull << 32;
 
-uint32_t read_u32(const std::string& b, size_t off) {
+uint32_t read_u32(const char* b) {
   uint32_t v;
-  std::memcpy(&v, b.data() + off, 4);
+  std::memcpy(&v, b, 4);
   return v;
 }
 
-std::string read_whole(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  if (!f) throw Error(ExitCode::kInputIo, "cannot open '" + p.string() + "': " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) throw Error(ExitCode::kInputIo, "cannot read '" + p.string() + "'");
-  return ss.str();
-}
+// An open input file, closed on scope exit.
+struct Fd {
+  int fd;
+  ~Fd() { ::close(fd); }
+};
 
 // Extensions whose meaning we implement, or which only concern materials/textures/lights and so
 // cannot change the geometry we import.
@@ -51,23 +51,37 @@ const std::set<std::string>& known_extensions() {
   return k;
 }
 
-// tinygltf file callbacks: absolute paths only, so the current directory is never searched.
-bool fs_exists(const std::string& p, void*) {
-  std::error_code ec;
-  return fs::path(p).is_absolute() && fs::is_regular_file(p, ec);
-}
+// tinygltf file callbacks: only the external buffers load_document resolved and checked can be
+// read — keyed by the exact path tinygltf asks for (its base directory joined with the decoded URI),
+// mapped to the checked canonical file and its size — never more than that size, never anything else
+// (not the current directory either).
+struct Approved {
+  std::string canonical;
+  uint64_t size;
+};
+using ApprovedMap = std::map<std::string, Approved>;
+bool fs_exists(const std::string& p, void* user) { return static_cast<const ApprovedMap*>(user)->count(p) > 0; }
 std::string fs_expand(const std::string& p, void*) { return p; }
-bool fs_read(std::vector<unsigned char>* out, std::string* err, const std::string& p, void*) {
-  if (!fs::path(p).is_absolute()) {
-    if (err) *err += "refusing relative path '" + p + "'\n";
+bool fs_read(std::vector<unsigned char>* out, std::string* err, const std::string& p, void* user) {
+  const ApprovedMap& approved = *static_cast<const ApprovedMap*>(user);
+  const auto it = approved.find(p);
+  if (it == approved.end()) {
+    if (err) *err += "refusing to read '" + p + "' (not a checked buffer path)\n";
     return false;
   }
-  std::ifstream f(p, std::ios::binary);
-  if (!f) {
-    if (err) *err += "cannot open '" + p + "'\n";
+  try {
+    uint64_t size = 0;
+    const Fd f{open_input_file(it->second.canonical, "", 0, &size)};
+    if (size != it->second.size) {
+      if (err) *err += "'" + p + "' changed size while loading\n";
+      return false;
+    }
+    out->resize(size_t(size));
+    read_exact(f.fd, 0, out->data(), out->size(), p);
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
     return false;
   }
-  out->assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
   return true;
 }
 bool fs_write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
@@ -92,12 +106,18 @@ int64_t data_uri_size(const std::string& uri) {
   return int64_t(n / 4 * 3) - int64_t(pad);
 }
 
+// URI decoding exactly as tinygltf does it (dlib::urldecode: '+' is a space, '%' takes the next two
+// characters), so the path checked here is the path tinygltf asks to read.
 std::string percent_decode(const std::string& s) {
+  auto hex = [](unsigned char c) -> unsigned {
+    return c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : c >= 'A' && c <= 'F' ? c - 'A' + 10 : 0;
+  };
   std::string out;
   for (size_t i = 0; i < s.size(); ++i) {
-    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit((unsigned char)s[i + 1]) &&
-        std::isxdigit((unsigned char)s[i + 2])) {
-      out.push_back(char(std::stoi(s.substr(i + 1, 2), nullptr, 16)));
+    if (s[i] == '+') {
+      out.push_back(' ');
+    } else if (s[i] == '%' && s.size() > i + 2) {
+      out.push_back(char(hex((unsigned char)s[i + 1]) << 4 | hex((unsigned char)s[i + 2])));
       i += 2;
     } else {
       out.push_back(s[i]);
@@ -106,57 +126,87 @@ std::string percent_decode(const std::string& s) {
   return out;
 }
 
+// tinygltf's JoinPath.
+std::string join_path(const std::string& dir, const std::string& file) {
+  return dir.empty() ? file : dir.back() == '/' ? dir + file : dir + "/" + file;
+}
+
+// Where an external buffer's URI lands, refused (exit 3, naming the JSON pointer) when it resolves —
+// after percent-decoding, `..` and symbolic links — outside the glTF's directory and every allowed
+// directory. Returns the canonical path (the file may not exist).
+fs::path confined_path(const std::string& uri, const std::string& ptr, const fs::path& base_dir,
+                       const std::vector<fs::path>& roots) {
+  const std::string decoded = percent_decode(uri);
+  if (decoded.find('\0') != std::string::npos) fail_invalid(ptr + "/uri: contains a NUL byte");
+  std::error_code ec;
+  const fs::path joined = fs::path(decoded).is_absolute() ? fs::path(decoded) : base_dir / fs::path(decoded);
+  const fs::path target = fs::weakly_canonical(joined, ec);
+  if (!ec)
+    for (const fs::path& root : roots) {
+      const fs::path rel = target.lexically_relative(root);
+      if (!rel.empty() && *rel.begin() != "..") return target;
+    }
+  std::string allowed;
+  for (const fs::path& r : roots) allowed += (allowed.empty() ? "" : ", ") + r.string();
+  fail_invalid(ptr + "/uri: '" + uri + "' resolves to " + (ec ? decoded : target.string()) +
+               ", outside the glTF's directory (allowed: " + allowed + "; widen with --allow-path DIR)");
+}
+
 }  // namespace
 
-Document load_document(const std::string& path) {
+Document load_document(const std::string& path, const std::vector<std::string>& allowed_dirs) {
   Document doc;
   doc.path = path;
   std::error_code ec;
-  fs::path abs = fs::absolute(path, ec);
-  if (ec || !fs::is_regular_file(abs, ec))
-    throw Error(ExitCode::kInputIo, "cannot open '" + path + "': no such file");
+  uint64_t file_size = 0;
+  const Fd in{open_input_file(path, "", 0, &file_size)};  // regular files only; a FIFO never blocks
+  const fs::path abs = fs::absolute(path, ec);
   doc.base_dir = abs.parent_path().string();
-  const uint64_t file_size = fs::file_size(abs, ec);
-  if (ec) throw Error(ExitCode::kInputIo, "cannot read size of '" + path + "'");
   if (file_size >= k4GiB)
     fail_invalid("file is " + std::to_string(file_size) +
                  " bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
-  const std::string bytes = read_whole(abs);
-  if (bytes.size() != file_size) throw Error(ExitCode::kInputIo, "short read of '" + path + "'");
 
-  // Container: .glb (by magic, whatever the extension) or JSON text.
-  std::string json_text;
-  const char* bin = nullptr;
-  size_t bin_size = 0;
-  const bool is_glb = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
+  // Container: .glb (by magic, whatever the extension) or JSON text. A .glb's header and chunk
+  // headers are checked against the file size before any chunk body is read.
+  std::string json_text, bin_data;
+  bool has_bin = false;
+  char head[12] = {};
+  read_exact(in.fd, 0, head, size_t(std::min<uint64_t>(file_size, 12)), path);
+  const bool is_glb = file_size >= 4 && read_u32(head) == kGlbMagic;
   if (is_glb) {
-    if (bytes.size() < 20) fail_invalid("truncated file: " + std::to_string(bytes.size()) + " bytes is too short for a .glb header");
-    const uint32_t version = read_u32(bytes, 4), length = read_u32(bytes, 8);
+    if (file_size < 20) fail_invalid("truncated file: " + std::to_string(file_size) + " bytes is too short for a .glb header");
+    const uint32_t version = read_u32(head + 4), length = read_u32(head + 8);
     if (version != 2) fail_invalid(".glb container version " + std::to_string(version) + " is not supported (need 2)");
-    if (length > bytes.size())
+    if (length > file_size)
       fail_invalid("truncated file: .glb header declares " + std::to_string(length) + " bytes but the file has " +
-                   std::to_string(bytes.size()));
-    size_t off = 12;
+                   std::to_string(file_size));
+    uint64_t off = 12;
     int chunk = 0;
     while (off < length) {
       if (off + 8 > length) fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
-      const uint64_t clen = read_u32(bytes, off), ctype = read_u32(bytes, off + 4);
+      char ch[8];
+      read_exact(in.fd, off, ch, 8, path);
+      const uint64_t clen = read_u32(ch), ctype = read_u32(ch + 4);
       if (off + 8 + clen > length)
         fail_invalid("truncated file: chunk " + std::to_string(chunk) + " (" + std::to_string(clen) + " bytes at byte " +
                      std::to_string(off + 8) + ") extends past the end of the data (" + std::to_string(length) + " bytes)");
       if (chunk == 0 && ctype != kChunkJson) fail_invalid(".glb: the first chunk is not JSON");
-      if (chunk == 0) json_text.assign(bytes.data() + off + 8, clen);
-      if (chunk == 1 && ctype == kChunkBin) {
-        bin = bytes.data() + off + 8;
-        bin_size = clen;
+      std::string* dst = chunk == 0 ? &json_text : (chunk == 1 && ctype == kChunkBin) ? &bin_data : nullptr;
+      if (dst) {  // only the JSON and BIN chunks are read; others are skipped
+        dst->resize(size_t(clen));
+        read_exact(in.fd, off + 8, dst->data(), dst->size(), path);
+        has_bin |= dst == &bin_data;
       }
       off += 8 + ((clen + 3) & ~uint64_t(3));
       ++chunk;
     }
     if (chunk == 0) fail_invalid(".glb has no JSON chunk");
   } else {
-    json_text = bytes;
+    json_text.resize(size_t(file_size));
+    read_exact(in.fd, 0, json_text.data(), json_text.size(), path);
   }
+  const char* bin = has_bin ? bin_data.data() : nullptr;
+  const size_t bin_size = bin_data.size();
 
   jsonc::check_depth(json_text, "");
   try {
@@ -184,6 +234,16 @@ Document load_document(const std::string& path) {
   // Real sizes of the buffers' data, and which are meshopt fallback buffers (no data in the file).
   std::vector<int64_t> sizes;
   std::vector<int> fallback;
+  std::vector<fs::path> roots;  // external buffers must resolve inside one of these
+  for (const fs::path& d : [&] {
+         std::vector<fs::path> v{doc.base_dir};
+         v.insert(v.end(), allowed_dirs.begin(), allowed_dirs.end());
+         return v;
+       }()) {
+    const fs::path c = fs::weakly_canonical(fs::absolute(d, ec), ec);
+    if (!ec) roots.push_back(c);
+  }
+  ApprovedMap approved;
   if (j.contains("buffers")) {
     if (!j["buffers"].is_array()) fail_invalid("/buffers: not an array");
     for (size_t i = 0; i < j["buffers"].size(); ++i) {
@@ -212,10 +272,19 @@ Document load_document(const std::string& path) {
         real = data_uri_size(uri);
         if (real < 0) fail_invalid(ptr + "/uri: data URI is not base64");
       } else {
-        fs::path p = fs::path(doc.base_dir) / percent_decode(uri);
-        if (!fs::is_regular_file(p, ec))
+        const fs::path p = confined_path(uri, ptr, doc.base_dir, roots);
+        struct stat st{};
+        if (::stat(p.c_str(), &st) != 0)
           throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri + "' (looked in " + doc.base_dir + ")");
-        real = int64_t(fs::file_size(p, ec));
+        if (!S_ISREG(st.st_mode))
+          throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri + "': " +
+                                              (S_ISDIR(st.st_mode) ? "is a directory" : "is not a regular file"));
+        real = int64_t(st.st_size);
+        // Size checked before reading: the file is read only when it is exactly byteLength bytes.
+        if (uint64_t(real) > declared)
+          fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but '" + uri + "' has " + std::to_string(real) +
+                       " bytes (the file must be exactly byteLength bytes)");
+        approved[join_path(doc.base_dir, percent_decode(uri))] = Approved{p.string(), uint64_t(real)};
       }
       if (real >= 0 && uint64_t(real) < declared)
         fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but only " + std::to_string(real) +
@@ -240,7 +309,7 @@ Document load_document(const std::string& path) {
 
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(no_image_loader, nullptr);
-  loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, nullptr});
+  loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, &approved});
   std::string err, warn;
   bool ok;
   const std::string text = patched.dump();

@@ -4,6 +4,8 @@
 
 #include <cstdio>
 
+#include "core/utf8.h"
+
 namespace rtp {
 namespace {
 
@@ -63,7 +65,7 @@ nlohmann::json scene_summary_json(const Scene& s) {
   json bounds = nullptr;
   if (!s.bounds.empty())
     bounds = {{"min", {s.bounds.lo.x, s.bounds.lo.y, s.bounds.lo.z}}, {"max", {s.bounds.hi.x, s.bounds.hi.y, s.bounds.hi.z}}};
-  return {{"source", s.source_path},   {"scene", s.gltf_scene},
+  return {{"source", utf8_display(s.source_path)},   {"scene", s.gltf_scene},
           {"meshes", s.meshes.size()}, {"instances", s.instances.size()},
           {"mirrored_instances", mirrored},
           {"unique_triangles", s.unique_triangles()},
