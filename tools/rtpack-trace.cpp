@@ -21,25 +21,9 @@
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
 #include "package/package_tracer.h"
+#include "trace/ray_file.h"
 
 namespace {
-
-std::vector<rtp::fmt::Ray> read_rays(const std::string& path) {
-  uint64_t size = 0;
-  const int fd = rtp::open_input_file(path, "ray file", 0, &size);  // regular files only
-  std::vector<rtp::fmt::Ray> rays;
-  try {
-    if (size % sizeof(rtp::fmt::Ray))
-      rtp::fail_invalid("ray file '" + path + "': " + std::to_string(size) + " bytes is not a multiple of 32 (8 float32 per ray)");
-    rays.resize(size / sizeof(rtp::fmt::Ray));
-    rtp::read_exact(fd, 0, rays.data(), size, path);
-  } catch (...) {
-    ::close(fd);
-    throw;
-  }
-  ::close(fd);
-  return rays;
-}
 
 // Primary rays through a W x H image from the package's first glTF camera, or from an automatic
 // camera framing the header bounds (looking at the centre from +z, 45 degrees).
@@ -157,7 +141,7 @@ int main(int argc, char** argv) {
       const auto cr = camera_rays(reader, w, h);
       rtp::write_output_file(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
     }
-    const std::vector<rtp::fmt::Ray> rays = read_rays(rays_path);
+    const std::vector<rtp::fmt::Ray> rays = rtp::read_ray_file(rays_path);
     rtp::PackageTraceOptions opt;
     opt.cull = !no_cull;
     const rtp::Isa best = rtp::detect_isa();

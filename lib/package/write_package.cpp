@@ -79,7 +79,7 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
     job.triangles += scene.meshes[m].triangle_count();
   }
   job.set_attributes(attrs, ChunkKind::kSegmentAttributes);
-  ChunkBuilder cb(uint32_t(ChunkKind::kMeshSegment));
+  ChunkBuilder cb{uint32_t(ChunkKind::kMeshSegment)};
   cb.add(SectionType::kMeshEntries, parts.entries);
   cb.add(SectionType::kNodes, parts.nodes);
   cb.add(SectionType::kBlocks, parts.blocks);
@@ -135,7 +135,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   te.node_count = uint32_t(top.nodes.size());
   te.block_count = uint32_t(top.items.size());
   te.triangles = bp.unique_triangles + bp.instanced_triangles;
-  ChunkBuilder cb(uint32_t(ChunkKind::kBatchingPoint));
+  ChunkBuilder cb{uint32_t(ChunkKind::kBatchingPoint)};
   cb.add(SectionType::kInstanceBvh, std::vector<fmt::MeshEntry>{te});
   cb.add(SectionType::kInstanceNodes, top.nodes);
   cb.add(SectionType::kInstanceIds, top.items);
@@ -180,11 +180,11 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   for (const Mesh& m : scene.meshes) names.push_back(m.name);
   meta["mesh_names"] = names;
   const std::string text = meta.dump();
-  ChunkBuilder mc(uint32_t(ChunkKind::kMetadata));
+  ChunkBuilder mc{uint32_t(ChunkKind::kMetadata)};
   mc.add_raw(SectionType::kJson, text.data(), text.size(), 1);
   add(ChunkKind::kMetadata, mc);
 
-  ChunkBuilder tc(uint32_t(ChunkKind::kTopLevelBvh));
+  ChunkBuilder tc{uint32_t(ChunkKind::kTopLevelBvh)};
   tc.add(SectionType::kTopNodes, plan.top);
   add(ChunkKind::kTopLevelBvh, tc);
 
@@ -209,13 +209,13 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
     d.chunk_id = uint32_t(p);
     descs.push_back(d);
   }
-  ChunkBuilder dc(uint32_t(ChunkKind::kBatchingPoints));
+  ChunkBuilder dc{uint32_t(ChunkKind::kBatchingPoints)};
   dc.add(SectionType::kPointDescs, descs);
   dc.add(SectionType::kSegmentRefs, seg_refs);
   if (!grids.empty()) dc.add(SectionType::kPointGrids, grids);
   add(ChunkKind::kBatchingPoints, dc);
   if (!grids.empty()) {
-    ChunkBuilder pc(uint32_t(ChunkKind::kDagPool));
+    ChunkBuilder pc{uint32_t(ChunkKind::kDagPool)};
     pc.add(SectionType::kDagNodes, pool.words());
     pc.add(SectionType::kDagLeaves, pool.leaves());
     add(ChunkKind::kDagPool, pc);
@@ -223,7 +223,7 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
 
   std::vector<fmt::InstanceRecord> recs;
   for (const Instance& in : scene.instances) recs.push_back(make_instance_record(in));
-  ChunkBuilder ic(uint32_t(ChunkKind::kInstances));
+  ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
   ic.add(SectionType::kInstances, recs);
   add(ChunkKind::kInstances, ic);
 
@@ -244,11 +244,11 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
     tris.insert(tris.end(), mesh.source.begin(), mesh.source.end());
     infos.push_back(mi);
   }
-  ChunkBuilder meshc(uint32_t(ChunkKind::kMeshes));
+  ChunkBuilder meshc{uint32_t(ChunkKind::kMeshes)};
   meshc.add(SectionType::kMeshTable, infos);
   add(ChunkKind::kMeshes, meshc);
   static_assert(sizeof(SourcePrimitive) == 8 && sizeof(TriangleSource) == 8);
-  ChunkBuilder sc(uint32_t(ChunkKind::kSourceMap));
+  ChunkBuilder sc{uint32_t(ChunkKind::kSourceMap)};
   sc.add(SectionType::kSourcePrims, prims);
   sc.add(SectionType::kSourceTris, tris);
   add(ChunkKind::kSourceMap, sc);
