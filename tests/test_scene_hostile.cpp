@@ -232,6 +232,14 @@ TEST_F(HostileGltf, AccessorWithoutBufferViewIsBounded) {
                  1000000);
 }
 
+TEST_F(HostileGltf, IndicesAccessorWithoutBufferViewNamesThePrimitive) {  // was tinygltf's "accessor[1] invalid bufferView"
+  GltfBuilder b = one_triangle();
+  const auto ia = b.j["meshes"][0]["primitives"][0]["indices"].get<size_t>();
+  b.j["accessors"][ia].erase("bufferView");
+  expect(b, "/meshes/0/primitives/0/indices: accessor " + std::to_string(ia) +
+                " has no bufferView (indices must be stored in a buffer; all-zero indices make no triangle)");
+}
+
 TEST_F(HostileGltf, MeshoptDeclaredSizeBeyondTheCodecsExpansion) {
   GltfBuilder b = meshopt_triangle();
   const uint64_t count = uint64_t(1) << 28;  // 3 GiB decoded from 36 compressed bytes

@@ -140,7 +140,8 @@ void validate_accessors(const json& accessors, const json& views, uint64_t backe
   }
 }
 
-void validate_meshes(const json& meshes, size_t n_accessors, size_t n_views) {
+void validate_meshes(const json& meshes, const json& accessors, size_t n_views) {
+  const size_t n_accessors = accessors.size();
   for (size_t m = 0; m < meshes.size(); ++m) {
     const std::string mp = "/meshes/" + to_string(m);
     if (!meshes[m].contains("primitives") || !meshes[m]["primitives"].is_array())
@@ -153,11 +154,19 @@ void validate_meshes(const json& meshes, size_t n_accessors, size_t n_views) {
         fail_invalid(pp + "/attributes: missing or not an object");
       for (auto it = pr["attributes"].begin(); it != pr["attributes"].end(); ++it)
         check_ref(pr["attributes"], it.key().c_str(), n_accessors, pp + "/attributes", "accessor", true);
-      check_ref(pr, "indices", n_accessors, pp, "accessor", false);
+      const bool draco = pr.contains("extensions") && pr["extensions"].is_object() &&
+                         pr["extensions"].contains("KHR_draco_mesh_compression");
+      // glTF 2.0 §3.6.2.1 lets an accessor without a bufferView be zeros; as indices that is no triangle
+      // at all (tinygltf refuses it with "invalid bufferView", naming neither primitive nor pointer).
+      if (check_ref(pr, "indices", n_accessors, pp, "accessor", false) && !draco) {
+        const int64_t ia = pr["indices"].get<int64_t>();
+        if (!accessors[size_t(ia)].is_object() || !accessors[size_t(ia)].contains("bufferView"))
+          fail_invalid(pp + "/indices: accessor " + to_string(ia) +
+                       " has no bufferView (indices must be stored in a buffer; all-zero indices make no triangle)");
+      }
       const int64_t mode = jsonc::get_int(pr, "mode", 4, pp);
       if (mode < 0 || mode > 6) fail_invalid(pp + "/mode: " + to_string(mode) + " is not a glTF primitive mode");
-      if (pr.contains("extensions") && pr["extensions"].is_object() &&
-          pr["extensions"].contains("KHR_draco_mesh_compression")) {
+      if (draco) {
         const json& d = pr["extensions"]["KHR_draco_mesh_compression"];
         const std::string dp = pp + "/extensions/KHR_draco_mesh_compression";
         if (!d.is_object() || !d.contains("attributes") || !d["attributes"].is_object())
@@ -345,7 +354,7 @@ void validate_json(const json& root, const std::vector<int64_t>& buffer_sizes) {
     if (!fallback[b]) backed_bytes += uint64_t(buffer_sizes[b]);
   }
   validate_views(views, buffer_sizes, fallback);
-  validate_meshes(meshes, accessors.size(), views.size());
+  validate_meshes(meshes, accessors, views.size());
   validate_accessors(accessors, views, backed_bytes, draco_accessors(meshes, accessors.size()));
   validate_cameras(cameras);
   validate_nodes(root, nodes, meshes.size(), cameras.size(), accessors.size());
