@@ -292,6 +292,7 @@ TEST_F(Hostile, CullingGridIsCheckedAtDecode) {  // voxel::check_dags runs when 
   patch_chunk(p, index, [](uint8_t* chunk, size_t) { section<fmt::DagGrid>(chunk, SectionType::kPointGrids)[2].resolution = 48; });
   expect_tracer_rejects(p, {pool, "culling DAG of batching point 2: resolution 48 is not a power of two"});
   expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"}, true);
+  expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"});  // plain inspect too
 }
 
 }  // namespace

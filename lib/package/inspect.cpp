@@ -457,7 +457,7 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
                              {"max", {h.bounds_hi[0], h.bounds_hi[1], h.bounds_hi[2]}}}}};
   j["sizes"] = sizes(c, tris);
   j["bytes_per_unique_triangle"] = double(h.file_size) / tris;
-  j["dag"] = dag_report(reader, c.res, c.ver ? &c.problems : nullptr);
+  j["dag"] = dag_report(reader, c.res, c.problems, c.ver != nullptr);
   j["dag_pool_bytes"] = j["dag"]["pool_bytes"];
   j["instances"] = c.res.instances.size();
   j["meshes"] = c.res.meshes.size();

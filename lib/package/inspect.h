@@ -155,9 +155,10 @@ struct Resident {
 };
 
 // The "dag" block of the report (pool bytes and counts, resolutions, sharing, set cells) from the
-// resident sections alone; with `verify` the DAG invariants are checked too (pool chunk iff grids iff
-// header flag, one grid per batching point, every grid's DAG sound and covering its point's bounds).
-nlohmann::json dag_report(const PackageReader& reader, const Resident& resident, Problems* verify);
+// resident sections alone. Structural DAG problems are reported in every mode, as the tracer refuses
+// them (SPEC §4.6): pool chunk iff grids iff header flag, one grid per batching point, every grid's DAG
+// sound (voxel::check_dag); with `verify` also every grid covering its point's bounds.
+nlohmann::json dag_report(const PackageReader& reader, const Resident& resident, Problems& problems, bool verify);
 
 // One mesh segment: its entries and, per entry, the prims of its leaves (non-padding lanes).
 struct SegmentData {

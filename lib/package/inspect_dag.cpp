@@ -1,8 +1,9 @@
 // rtpack-inspect: the occlusion-culling DAGs (formats/dag.h, SPEC §4.5, version 2.0). Statistics of
 // the shared pool (bytes, nodes, leaves, resolutions, sharing against each point's DAG built alone,
-// set cells) and, with --verify, its invariants: the pool chunk exists iff the grids section does iff
+// set cells) and its invariants, in every mode: the pool chunk exists iff the grids section does iff
 // the header says kFlagDag; one grid per batching point; every grid sound (voxel::check_dag: fields,
-// every reachable reference in range, no malformed node or leaf) and covering its point's bounds.
+// every reachable reference in range, no malformed node or leaf); with --verify also covering its
+// point's bounds.
 #include <bit>
 #include <cmath>
 #include <map>
@@ -105,8 +106,8 @@ std::string grid_name(const fmt::DagGrid& g) {
 
 }  // namespace
 
-nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems* verify) {
-  if (verify) check_presence(r, res, *verify);
+nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems& problems, bool verify) {
+  check_presence(r, res, problems);  // the tracer refuses the same (package_tracer.cpp load_dags)
   const uint64_t pool_bytes = res.dag_ok ? res.dag_words.size() * 4 + res.dag_leaves.size() * 8 : 0;
   nlohmann::json j = {{"present", res.dag_present || res.grids_present}, {"pool_bytes", pool_bytes},
                       {"node_words", res.dag_words.size()}, {"leaves", res.dag_leaves.size()}};
@@ -124,11 +125,11 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems*
     std::string bad = voxel::check_dag(fields, view);
     if (!bad.empty()) {
       ++malformed;
-      if (verify) verify->add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) + "): " + bad);
+      problems.add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) + "): " + bad);
       continue;
     }
     if (verify && p < res.descs.size() && !box_empty(res.descs[p]) && !covers(g, res.descs[p]))
-      verify->add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) +
+      problems.add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) +
                   ") does not cover the batching point's bounds");
     const bool needs_pool = g.root != fmt::kDagEmpty && g.root != fmt::kDagFull;
     if (needs_pool && !res.dag_ok) {  // missing or unreadable pool: reported elsewhere
@@ -138,7 +139,7 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems*
     bad = voxel::check_dag(g, view);  // then every reference reachable from its root
     if (!bad.empty()) {
       ++malformed;
-      if (verify) verify->add(res.dag_label + ": batching point " + str(p) + "'s DAG (" + grid_name(g) + "): " + bad);
+      problems.add(res.dag_label + ": batching point " + str(p) + "'s DAG (" + grid_name(g) + "): " + bad);
       continue;
     }
     ++sound;
