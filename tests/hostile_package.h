@@ -18,6 +18,7 @@
 #include "package/write_package.h"
 #include "package_patch.h"
 #include "scene/import.h"
+#include "tool_run.h"
 
 namespace rtp::test {
 
@@ -86,7 +87,19 @@ inline bool contains_all(const std::string& s, const std::vector<std::string>& n
 class Hostile : public ::testing::Test {
  protected:
   fs::path dir = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-  void TearDown() override { fs::remove_all(dir); }
+  // RTP_KEEP_HOSTILE=DIR keeps every package a test fabricated (TEST-NAME.FILE.rtp), so
+  // scripts/hostile-report can time the tools on them (timings never go into the tests).
+  void TearDown() override {
+    if (const char* keep = std::getenv("RTP_KEEP_HOSTILE"); keep && *keep) {
+      fs::create_directories(keep);
+      const std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+      for (const auto& f : fs::directory_iterator(dir))
+        if (f.is_regular_file() && f.path().extension() == ".rtp")
+          fs::copy_file(f.path(), fs::path(keep) / (name + "." + f.path().filename().string()),
+                        fs::copy_options::overwrite_existing);
+    }
+    fs::remove_all(dir);
+  }
   std::string copy(const std::string& base) {
     const fs::path p = dir / fs::path(base).filename();
     fs::copy_file(base, p, fs::copy_options::overwrite_existing);
@@ -113,10 +126,37 @@ class Hostile : public ::testing::Test {
     for (const std::string& m : res.listed) found |= contains_all(m, needles);
     EXPECT_TRUE(found) << res.report["problems"].dump(2);
   }
-  static void expect_everywhere(const std::string& path, const std::vector<std::string>& needles) {
+  // The tools themselves, as subprocesses: plain rtpack-trace, rtpack-inspect and rtpack-inspect --verify
+  // exit 3 with every needle in the message, write no hit file, never hang (20 s is a hang, not a
+  // timing) and stay under 100 MB of resident memory (not under ASan, whose shadow memory dominates).
+  void expect_tools_reject(const std::string& path, const std::vector<std::string>& needles) {
+    const fs::path rays = dir / "tools.rays", hits = dir / "tools.hits";
+    if (!fs::exists(rays)) {
+      std::vector<fmt::Ray> r(64);
+      for (size_t i = 0; i < r.size(); ++i) r[i] = {{float(i) * 0.5f - 16.f, 50.f, float(i % 8) - 4.f}, 0.f, {0.01f, -1.f, 0.02f}, 1e30f};
+      std::ofstream(rays, std::ios::binary).write(reinterpret_cast<const char*>(r.data()), std::streamsize(r.size() * sizeof(fmt::Ray)));
+    }
+    const std::vector<std::pair<std::string, std::vector<std::string>>> runs = {
+        {"rtpack-trace", {path, "--rays", rays.string(), "--hits", hits.string()}},
+        {"rtpack-inspect", {path}},
+        {"rtpack-inspect", {"--verify", path}}};
+    for (const auto& [t, args] : runs) {
+      const ToolResult r = run_tool(t, args, dir, {}, 20);
+      const std::string what = t + (args[0] == "--verify" ? " --verify" : "");
+      EXPECT_EQ(r.code, 3) << what << (r.timed_out ? " hung" : "") << " signal " << r.signal << ": " << r.err;
+      EXPECT_TRUE(contains_all(r.out + r.err, needles)) << what << ": " << r.out << r.err;  // --verify lists on stdout
+      if (!std::getenv("RTP_SANITIZED")) {
+        EXPECT_GT(r.max_rss_kib, 0) << what;
+        EXPECT_LT(r.max_rss_kib, 100 * 1000) << what << " peak RSS (KiB)";
+      }
+    }
+    EXPECT_FALSE(fs::exists(hits)) << "rtpack-trace wrote a hit file for a package it refused";
+  }
+  void expect_everywhere(const std::string& path, const std::vector<std::string>& needles) {
     expect_tracer_rejects(path, needles);
     expect_inspect_problem(path, needles);
     expect_inspect_problem(path, needles, true);
+    expect_tools_reject(path, needles);
   }
 };
 

@@ -25,7 +25,7 @@ struct ToolResult {
   int code = -1;       // exit status, or -1 when killed by a signal / timed out
   int signal = 0;      // the terminating signal, if any
   bool timed_out = false;
-  long max_rss_kib = 0;
+  long max_rss_kib = 0;  // the tool's peak resident set (KiB); see wait_tool
   std::string out, err;
 };
 
@@ -41,8 +41,13 @@ inline std::string slurp_file(const std::filesystem::path& p) {
 
 // Starts `tool args...` with stdout/stderr to `io_dir`/out and /err and `env` ("K=V") added.
 inline pid_t spawn_tool(const std::string& tool, const std::vector<std::string>& args, const std::filesystem::path& io_dir,
-                        const std::vector<std::string>& env = {}) {
-  std::vector<std::string> argv_s{tool_path(tool)};
+                        const std::vector<std::string>& env = {}, bool peak_rss = false) {
+  // With peak_rss, through rtp_peak_rss (tests/tools/peak_rss.cpp), which writes the tool's own peak RSS
+  // to io_dir/rss; without it the tool is the direct child (signals sent to the pid reach the tool).
+  std::filesystem::remove(io_dir / "rss");
+  std::vector<std::string> argv_s;
+  if (peak_rss) argv_s = {std::string(RTP_BINARY_DIR) + "/rtp_peak_rss", (io_dir / "rss").string()};
+  argv_s.push_back(tool_path(tool));
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& a : argv_s) argv.push_back(a.data());
@@ -87,7 +92,10 @@ inline ToolResult wait_tool(pid_t pid, const std::filesystem::path& io_dir, doub
   }
   if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
+  // The tool's peak as rtp_peak_rss saw it when it ran the tool; wait4's own figure starts at the
+  // forked test binary's resident pages, so it is only an upper bound.
   r.max_rss_kib = ru.ru_maxrss;
+  if (std::ifstream rss(io_dir / "rss"); rss) rss >> r.max_rss_kib;
   r.out = slurp_file(io_dir / "out");
   r.err = slurp_file(io_dir / "err");
   return r;
@@ -95,7 +103,7 @@ inline ToolResult wait_tool(pid_t pid, const std::filesystem::path& io_dir, doub
 
 inline ToolResult run_tool(const std::string& tool, const std::vector<std::string>& args, const std::filesystem::path& io_dir,
                            const std::vector<std::string>& env = {}, double timeout_s = 60) {
-  return wait_tool(spawn_tool(tool, args, io_dir, env), io_dir, timeout_s);
+  return wait_tool(spawn_tool(tool, args, io_dir, env, true), io_dir, timeout_s);
 }
 
 }  // namespace rtp::test
