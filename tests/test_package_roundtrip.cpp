@@ -206,6 +206,38 @@ TEST_F(Package, TraceFilesAgreeWithEmbree) {
   }
 }
 
+// rtpack-trace reports what loading cost: every chunk the in-core tracer reads (top level, descriptors,
+// DAG pool, instance table, segments, batching points), its raw bytes, and the check time inside it.
+TEST_F(Package, TraceReportsTheLoadItDid) {
+  const Scene s = import_gltf((source_dir() / "samples/generated/forest-small.glb").string());
+  const std::string pkg = write(s, dir / "p.rtp", 8, 4000);
+  const std::vector<fmt::Ray> rays(4, fmt::Ray{{0.f, 50.f, 0.f}, 0.f, {0.f, -1.f, 0.f}, 1e30f});
+  std::ofstream(dir / "rays.bin", std::ios::binary).write(reinterpret_cast<const char*>(rays.data()),
+                                                         std::streamsize(rays.size() * sizeof(fmt::Ray)));
+  ASSERT_EQ(run(std::string(RTP_BINARY_DIR) + "/rtpack-trace " + pkg + " --json --rays " + (dir / "rays.bin").string() +
+                " --hits " + (dir / "h.bin").string() + " > " + (dir / "out.json").string()),
+            0);
+  std::ifstream in(dir / "out.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  uint64_t chunks = 0, raw = 0;
+  const PackageReader r(pkg);
+  for (const fmt::TocEntry& e : r.toc())
+    switch (fmt::ChunkKind(e.kind)) {
+      case fmt::ChunkKind::kTopLevelBvh: case fmt::ChunkKind::kBatchingPoints: case fmt::ChunkKind::kDagPool:
+      case fmt::ChunkKind::kInstances: case fmt::ChunkKind::kMeshSegment: case fmt::ChunkKind::kBatchingPoint:
+        ++chunks, raw += e.raw_size;
+        break;
+      default: break;
+    }
+  EXPECT_GT(chunks, 6u);
+  EXPECT_EQ(j.at("chunks_loaded").get<uint64_t>(), chunks);
+  EXPECT_EQ(j.at("chunk_raw_bytes").get<uint64_t>(), raw);
+  const double total = j.at("load_seconds"), read = j.at("load_read_seconds"), check = j.at("load_check_seconds");
+  EXPECT_GT(read, 0.0);
+  EXPECT_GT(check, 0.0);
+  EXPECT_LE(read + check, total);
+}
+
 std::string slurp(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), {});

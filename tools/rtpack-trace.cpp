@@ -189,8 +189,18 @@ int main(int argc, char** argv) {
     j["batching_point_visits"] = visits.load();
     j["culled_visits"] = culled.load();
     j["cull_rate"] = rate;
+    // Loading: every chunk read (and decompressed) and structurally checked before the first ray.
+    const rtp::PackageLoadStats ls = tracer->load_stats();
+    j["load_seconds"] = ls.total_seconds;
+    j["load_read_seconds"] = ls.read_seconds;
+    j["load_check_seconds"] = ls.check_seconds;
+    j["chunks_loaded"] = ls.chunks;
+    j["chunk_raw_bytes"] = ls.raw_bytes;
     if (json) std::cout << j.dump(2) << "\n";
-    else
+    else {
+      std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
+                   (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
+                   ls.check_seconds);
       std::fprintf(stderr,
                    "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s); "
                    "batching-point visits %llu, culled %llu (%.1f%%, culling %s)\n",
@@ -198,6 +208,7 @@ int main(int argc, char** argv) {
                    (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str(),
                    (unsigned long long)visits.load(), (unsigned long long)culled.load(), 100 * rate,
                    j["culling"].get<std::string>().c_str());
+    }
   } catch (const rtp::Error& e) {
     std::cerr << "error: " << package << ": " << e.what() << "\n";
     return int(e.code());

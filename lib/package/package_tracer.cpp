@@ -3,6 +3,7 @@
 #include "package/package_tracer.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -28,6 +29,8 @@ bool ray_is_valid(const fmt::Ray& r) {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 template <int W, int B>
 struct Point {
@@ -41,13 +44,25 @@ template <int W, int B>
 class Tracer final : public PackageTracer {
  public:
   explicit Tracer(const PackageReader& r) {
+    const auto t_start = Clock::now();
     const auto& toc = r.toc();
     auto load = [&](fmt::ChunkKind kind, uint64_t id) -> const AlignedBytes& {
       const int64_t i = r.find(kind, id);
       if (i < 0) fail_invalid(std::string("missing ") + chunk_kind_name(uint32_t(kind)) + " " + std::to_string(id));
+      const auto t0 = Clock::now();
       chunks_.push_back(r.read(size_t(i)));
+      load_.read_seconds += seconds_since(t0);
+      ++load_.chunks;
+      load_.raw_bytes += chunks_.back().size();
       labels_.push_back(chunk_label(toc[size_t(i)], size_t(i)));
       return chunks_.back();
+    };
+    // The structural checks, timed apart from the reads (they are always on: the load cost is printed).
+    auto checked = [&](auto&& f) {
+      const auto t0 = Clock::now();
+      auto out = f();
+      load_.check_seconds += seconds_since(t0);
+      return out;
     };
     chunks_.reserve(toc.size());
     {
@@ -61,9 +76,12 @@ class Tracer final : public PackageTracer {
     ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), labels_.back());
     descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n_points);
     dv.get<uint32_t>(fmt::SectionType::kSegmentRefs, n_refs);
-    check_point_descs(descs, n_points, n_refs, dv.label());
-    check_top_level(top_, top_count_, n_points, labels_[0]);
-    load_dags(r, dv, n_points, load);
+    checked([&] {
+      check_point_descs(descs, n_points, n_refs, dv.label());
+      check_top_level(top_, top_count_, n_points, labels_[0]);
+      return 0;
+    });
+    load_dags(r, dv, n_points, load, checked);
     {  // only its size: hits report scene instance ids, which must be in range
       const AlignedBytes& b = load(fmt::ChunkKind::kInstances, 0);
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), labels_.back());
@@ -76,7 +94,7 @@ class Tracer final : public PackageTracer {
       if (toc[i].kind != uint32_t(fmt::ChunkKind::kMeshSegment)) continue;
       const AlignedBytes& b = load(fmt::ChunkKind::kMeshSegment, toc[i].id);
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMeshSegment), labels_.back());
-      const GeometrySections<W, B> g = decode_segment<W, B>(v);
+      const GeometrySections<W, B> g = checked([&] { return decode_segment<W, B>(v); });
       for (uint64_t k = 0; k < g.n_entries; ++k) {
         const fmt::MeshEntry& e = g.entries[k];
         segment_meshes[e.id] = {g.nodes + e.node_first, g.blocks + e.block_first, e.root};
@@ -88,7 +106,7 @@ class Tracer final : public PackageTracer {
       const std::string& label = labels_.back();
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
       Point<W, B>& pt = points_[p];
-      const PointSections<W, B> s = decode_point<W, B>(v, n_instances);
+      const PointSections<W, B> s = checked([&] { return decode_point<W, B>(v, n_instances); });
       pt.global_ids = s.global_ids;
       pt.meshes.resize(s.n_slots);
       for (uint64_t k = 0; k < s.n_slots; ++k) {
@@ -105,7 +123,10 @@ class Tracer final : public PackageTracer {
       pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data()};
       pt.instance_count = s.n_records;
     }
+    load_.total_seconds = seconds_since(t_start);
   }
+
+  PackageLoadStats load_stats() const override { return load_; }
 
   uint64_t batching_points() const override { return points_.size(); }
   bool has_dags() const override { return grids_ != nullptr; }
@@ -174,8 +195,8 @@ class Tracer final : public PackageTracer {
  private:
   // The DAG pool and per-point grids (SPEC §4.5), when the package has them; every grid's DAG passes
   // voxel::check_dag() before any ray reads it.
-  template <class Load>
-  void load_dags(const PackageReader& r, const ChunkView& dv, uint64_t n_points, Load&& load) {
+  template <class Load, class Checked>
+  void load_dags(const PackageReader& r, const ChunkView& dv, uint64_t n_points, Load&& load, Checked&& checked) {
     uint64_t n_grids = 0;
     grids_ = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, n_grids, false);
     if (!grids_) return;
@@ -188,7 +209,7 @@ class Tracer final : public PackageTracer {
     ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), labels_.back());
     dag_.words = v.get<uint32_t>(fmt::SectionType::kDagNodes, dag_.word_count);
     dag_.leaves = v.get<uint64_t>(fmt::SectionType::kDagLeaves, dag_.leaf_count);
-    const std::string e = voxel::check_dags(grids_, n_grids, dag_);
+    const std::string e = checked([&] { return voxel::check_dags(grids_, n_grids, dag_); });
     if (!e.empty()) fail_invalid(labels_.back() + ": culling DAG of " + e);
   }
 
@@ -265,6 +286,7 @@ class Tracer final : public PackageTracer {
   std::vector<Point<W, B>> points_;
   const fmt::DagGrid* grids_ = nullptr;  // one per batching point, or null: no culling
   voxel::DagView dag_;
+  PackageLoadStats load_;
 };
 
 }  // namespace

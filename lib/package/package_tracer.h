@@ -25,8 +25,16 @@ struct PackageTraceStats : TraceStats {
   uint64_t culled_visits = 0;  // of those, skipped because the DAG is empty along the ray
 };
 
+// What loading cost (rtpack-trace prints it): chunk reads with decompression, and the structural
+// checks of check_chunks.h / voxel::check_dags that run on every chunk before any ray does.
+struct PackageLoadStats {
+  double total_seconds = 0, read_seconds = 0, check_seconds = 0;
+  uint64_t chunks = 0, raw_bytes = 0;
+};
+
 class PackageTracer {
  public:
+  virtual PackageLoadStats load_stats() const = 0;
   virtual ~PackageTracer() = default;
   // hits[i].instance is the scene instance index, hits[i].prim the triangle in its mesh.
   virtual PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n,
