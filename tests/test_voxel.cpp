@@ -24,9 +24,6 @@ using voxel::DagView;
 using voxel::Grid;
 using voxel::LocalDag;
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-
 // ---------------------------------------------------------------------------------------------
 // Exact triangle/box overlap: the 13-axis separating-axis test on integers (every input is a
 // multiple of 2^-kScale, so scaled coordinates are exact __int128 values; products stay below 2^126).

@@ -33,7 +33,7 @@ AlignedBytes ChunkBuilder::finish() const {
 }
 
 ChunkView::ChunkView(const uint8_t* bytes, size_t size, uint32_t expected_kind, std::string label)
-    : bytes_(bytes), size_(size), label_(std::move(label)) {
+    : bytes_(bytes), label_(std::move(label)) {
   fmt::ChunkHeader h{};
   if (reinterpret_cast<uintptr_t>(bytes) % 64) fail_invalid(label_ + ": chunk buffer not 64-byte aligned");
   if (size < sizeof h) fail_invalid(label_ + ": too short for a chunk header");

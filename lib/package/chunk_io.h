@@ -61,7 +61,6 @@ class ChunkView {
  private:
   const fmt::SectionEntry* find(fmt::SectionType type) const;
   const uint8_t* bytes_;
-  size_t size_;
   std::vector<fmt::SectionEntry> sections_;
   std::string label_;
 };

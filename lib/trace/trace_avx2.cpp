@@ -1,6 +1,10 @@
 // AVX2 path (built with -mavx2 -mfma ...): 4 lanes in SSE, 8 in AVX, 16 as two AVX halves.
 // No FMA contraction: the scalar reference rounds every product, and so must we.
+#if defined(__clang__)
+#pragma clang fp contract(off)
+#else
 #pragma GCC optimize("fp-contract=off")
+#endif
 #define RTP_ISA_NS avx2
 #include "trace/kernels_simd.h"
 #include "trace/trace_ray.h"

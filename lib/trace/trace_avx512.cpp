@@ -1,6 +1,10 @@
 // AVX-512 path (built with -mavx512f/vl/bw/dq): 16 lanes in one zmm, 4 and 8 in xmm/ymm.
 // No FMA contraction: the scalar reference rounds every product, and so must we.
+#if defined(__clang__)
+#pragma clang fp contract(off)
+#else
 #pragma GCC optimize("fp-contract=off")
+#endif
 #define RTP_ISA_NS avx512
 #include "trace/kernels_simd.h"
 #include "trace/simd_avx512.h"

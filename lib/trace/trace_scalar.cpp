@@ -1,5 +1,9 @@
 // Scalar reference path: the kernels every SIMD path must match bit for bit.
-#pragma GCC optimize("fp-contract=off")  // keep a*b+c as two roundings, as in the SIMD paths
+#if defined(__clang__)
+#pragma clang fp contract(off)  // keep a*b+c as two roundings, as in the SIMD paths
+#else
+#pragma GCC optimize("fp-contract=off")
+#endif
 #define RTP_ISA_NS scalar
 #include "trace/kernels_scalar.h"
 #include "trace/trace_ray.h"
