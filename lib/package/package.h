@@ -86,6 +86,7 @@ class PackageReader {
  private:
   AlignedBytes read_stored(size_t index) const;
   std::string path_;
+  void check_header_and_toc();  // the constructor's checks (it closes fd_ when they throw)
   int fd_ = -1;
   bool direct_ = false;
   uint64_t file_size_ = 0;
