@@ -48,6 +48,7 @@
 #include "oracle/rays.h"
 #include "scene/import.h"
 #include "trace/trace.h"
+#include "tool_version.h"
 
 namespace {
 
@@ -452,6 +453,7 @@ int run(const Config& cfg) {
 
 int main(int argc, char** argv) {
   CLI::App app{"rtpack-bench: rtpack's in-core tracer vs Embree 3 (ROBUST) on the same rays, same run"};
+  rtp::tools::add_version_flag(app, "rtpack-bench");
   Config cfg;
   std::string kinds = "primary,random,bounce,shadow", width = "all", threads = "all", order = "all", isa = "best";
   app.add_option("scene", cfg.scene_path, "input .gltf or .glb")->required();

@@ -18,6 +18,7 @@
 #include "package/write_package.h"
 #include "scene/import.h"
 #include "scene/summary.h"
+#include "tool_version.h"
 
 namespace {
 
@@ -30,6 +31,7 @@ std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
 int main(int argc, char** argv) {
   CLI::App app{"rtpack-convert: prepare a glTF scene for out-of-core ray tracing"};
+  rtp::tools::add_version_flag(app, "rtpack-convert");
   std::string input, output, build = "collapse", chunk_by = "instanced";
   bool dry_run = false, json = false, quiet = false, verbose = false;
   int scene_index = -1, subdivide = 0, width = 8, leaf_width = 0, zstd_level = 9, threads = 0;

@@ -15,6 +15,7 @@
 #include "core/progress.h"
 #include "package/inspect.h"
 #include "package/package.h"
+#include "tool_version.h"
 
 namespace {
 
@@ -222,6 +223,7 @@ void print_problems(const json& j, size_t shown) {
 
 int main(int argc, char** argv) {
   CLI::App app{"rtpack-inspect: sizes, batching points, BVH statistics and (--verify) invariants of a .rtp package"};
+  rtp::tools::add_version_flag(app, "rtpack-inspect");
   std::string input;
   bool chunks = false, json_out = false, verify = false;
   app.add_option("package", input, "the .rtp package")->required();

@@ -48,6 +48,7 @@
 #include "core/output_file.h"
 #include "core/math.h"
 #include "scene/import.h"
+#include "tool_version.h"
 
 namespace {
 
@@ -501,6 +502,7 @@ int run(const Options& cli) {
 int main(int argc, char** argv) {
   Options o;
   CLI::App app{"rtpack-make-scene: deterministic test scenes (.glb) from the sample meshes"};
+  rtp::tools::add_version_flag(app, "rtpack-make-scene");
   app.add_option("kind", o.kind, "gallery | forest | far")->required()->check(CLI::IsMember({"gallery", "forest", "far"}));
   app.add_option("-o,--output", o.output, "output .glb (appears only when complete)")->required();
   app.add_option("--count", o.count, "gallery: mesh nodes (default 12); forest: total instances (default 3000)")

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "scene/scene.h"
@@ -37,6 +38,10 @@ struct [[gnu::visibility("hidden")]] Document {
 // External buffers must resolve (after percent-decoding, `..` and symbolic links) inside the glTF's
 // directory or one of `allowed_dirs`; only regular files are read, and only once their size is checked.
 Document load_document(const std::string& path, const std::vector<std::string>& allowed_dirs = {});
+
+// For a file that is neither a .glb nor JSON text: "not a glTF file: this looks like an FBX file; …" with
+// a conversion hint (lib/scene/sniff.cpp), judged by `head`, the file's first bytes; "" for JSON text.
+std::string foreign_format_message(std::string_view head);
 
 // Validation of the JSON alone (before tinygltf sees it). `buffer_sizes` are the real byte sizes
 // of each buffer's data where known (external file, data URI, BIN chunk), or -1.

@@ -202,6 +202,11 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     }
     if (chunk == 0) fail_invalid(".glb has no JSON chunk");
   } else {
+    char text_head[64] = {};
+    const size_t n = size_t(std::min<uint64_t>(file_size, sizeof text_head));
+    read_exact(in.fd, 0, text_head, n, path);
+    if (const std::string foreign = foreign_format_message(std::string_view(text_head, n)); !foreign.empty())
+      fail_invalid(foreign);
     json_text.resize(size_t(file_size));
     read_exact(in.fd, 0, json_text.data(), json_text.size(), path);
   }
