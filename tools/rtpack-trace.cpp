@@ -20,83 +20,45 @@
 #include "package/package.h"
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
+#include "package/camera.h"
+#include "image/image.h"
 #include "package/package_tracer.h"
 #include "trace/ray_file.h"
+#include "tool_version.h"
 
 namespace {
 
-// Primary rays through a W x H image from the package's first glTF camera, or from an automatic
-// camera framing the header bounds (looking at the centre from +z, 45 degrees).
-std::vector<rtp::fmt::Ray> camera_rays(const rtp::PackageReader& r, int w, int h) {
-  namespace fmt = rtp::fmt;
-  const int64_t mi = r.find(fmt::ChunkKind::kMetadata, 0);
-  nlohmann::json cam;
-  std::string label;
-  if (mi >= 0) {
-    const rtp::AlignedBytes b = r.read(size_t(mi));
-    rtp::ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMetadata), rtp::chunk_label(r.toc()[size_t(mi)], size_t(mi)));
-    const auto text = v.copy<uint8_t>(fmt::SectionType::kJson);
-    label = v.label();
-    rtp::jsonc::check_depth(std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), label + ": metadata ");
-    const auto meta = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
-    if (meta.is_discarded() || !meta.is_object()) rtp::fail_invalid(label + ": metadata is not a JSON object");
-    if (const nlohmann::json* cams = rtp::jsonc::find(meta, "cameras")) {
-      if (!cams->is_array()) rtp::fail_invalid(label + ": /cameras: not an array");
-      if (!cams->empty()) cam = (*cams)[0];
-    }
-  }
-  double m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-  double yfov = 0.785398, aspect = double(w) / h;
-  const std::string cp = label + ": /cameras/0";  // the camera written by rtpack-convert (write_package.cpp)
-  if (!cam.is_null() && rtp::jsonc::get_string(cam, "type", cp) == "perspective") {
-    const nlohmann::json& world = rtp::jsonc::member(cam, "world", cp);
-    if (!world.is_array() || world.size() != 12) rtp::fail_invalid(cp + "/world: needs 12 numbers");
-    for (size_t i = 0; i < 12; ++i) m[i] = rtp::jsonc::as_number(world[i], cp + "/world/" + std::to_string(i));
-    yfov = rtp::jsonc::get_number(cam, "yfov", cp);
-    if (!(yfov > 0)) rtp::fail_invalid(cp + "/yfov: " + std::to_string(yfov) + " is not positive");
-  } else {
-    const auto& hd = r.header();
-    double c[3], ext = 0;
-    for (int k = 0; k < 3; ++k) {
-      c[k] = 0.5 * (double(hd.bounds_lo[k]) + hd.bounds_hi[k]);
-      ext = std::max(ext, double(hd.bounds_hi[k]) - hd.bounds_lo[k]);
-    }
-    m[3] = c[0];
-    m[7] = c[1];
-    m[11] = c[2] + 1.5 * ext + 1e-3;
-  }
-  std::vector<fmt::Ray> rays;
-  rays.reserve(size_t(w) * size_t(h));
-  const double t = std::tan(yfov / 2);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      const double px = (2 * (x + 0.5) / w - 1) * t * aspect, py = (1 - 2 * (y + 0.5) / h) * t;
-      const double d[3] = {px, py, -1};  // camera looks down -z
-      fmt::Ray ray{};
-      for (int k = 0; k < 3; ++k) {
-        ray.org[k] = float(m[4 * k + 3]);
-        ray.dir[k] = float(m[4 * k] * d[0] + m[4 * k + 1] * d[1] + m[4 * k + 2] * d[2]);
-      }
-      ray.tnear = 0;
-      ray.tfar = std::numeric_limits<float>::infinity();
-      rays.push_back(ray);
-    }
-  return rays;
+// "WxH" with both positive and at most 2^28 pixels.
+bool parse_size(const std::string& text, int* w, int* h) {
+  char tail = 0;
+  return std::sscanf(text.c_str(), "%dx%d%c", w, h, &tail) == 2 && *w > 0 && *h > 0 && int64_t(*w) * *h <= (int64_t(1) << 28);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"rtpack-trace: trace a ray file through a package"};
+  rtp::tools::add_version_flag(app, "rtpack-trace");
   std::string package, rays_path, hits_path, isa = "best", order = "octant";
   int threads = 0;
   bool any = false, json = false, direct = false, no_cull = false;
   app.add_option("package", package, "the .rtp package")->required();
   std::string make_rays;
-  app.add_option("--rays", rays_path, "ray file: N x {ox oy oz tnear dx dy dz tfar} float32")->required();
+  app.add_option("--rays", rays_path, "ray file: N x {ox oy oz tnear dx dy dz tfar} float32 (not with --image)");
   app.add_option("--make-camera-rays", make_rays,
-                 "WxH: first write primary rays from the package's first camera (or an automatic one) to --rays");
-  app.add_option("--hits", hits_path, "hit file to write: N x {t, instance, primitive, u, v} (or N bytes with --any)")->required();
+                 "WxH: first write primary rays from the package's camera (--camera; or an automatic one) to --rays");
+  app.add_option("--hits", hits_path,
+                 "hit file to write: N x {t, instance, primitive, u, v} (or N bytes with --any); with --image, the "
+                 "image's rays in pixel order");
+  std::string image_path, size = "1280x720", shade_name = "normal";
+  int camera = -1;
+  app.add_option("--image", image_path, "render the camera's primary rays to this PNG (no --rays needed)");
+  app.add_option("--size", size, "image size WxH for --image (default 1280x720)");
+  app.add_option("--camera", camera, "glTF camera index for --image and --make-camera-rays (default: the first, or an "
+                                     "automatic camera framing the bounds when the package has none)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--shade", shade_name, "--image colours: normal (default), depth or instance")
+      ->check(CLI::IsMember({"normal", "depth", "instance"}));
   std::string shading_path;
   app.add_option("--shading", shading_path,
                  "also write N x {normal xyz, u, v} float32: interpolated world normal and TEXCOORD_0 per hit "
@@ -116,32 +78,58 @@ int main(int argc, char** argv) {
   }
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+  const bool render = !image_path.empty();
+  auto usage = [](const std::string& msg) {
+    std::cerr << "rtpack-trace: " << msg << "\nRun with --help for more information.\n";
+    return int(rtp::ExitCode::kUsage);
+  };
+  if (render && (!rays_path.empty() || !make_rays.empty()))
+    return usage("--image traces the camera's own rays: leave out --rays and --make-camera-rays");
+  if (render && any) return usage("--image shows closest hits: it cannot be used with --any");
+  if (!render && (rays_path.empty() || hits_path.empty()))
+    return usage("--rays and --hits are required (or --image PNG to render the camera's rays)");
+  int img_w = 0, img_h = 0;
+  if (render && !parse_size(size, &img_w, &img_h)) return usage("--size " + size + ": expected WxH, e.g. 1280x720");
+  if (!render && (app.count("--size") > 0 || app.count("--shade") > 0)) return usage("--size and --shade belong to --image");
+  if (!render && camera >= 0 && make_rays.empty()) return usage("--camera belongs to --image and --make-camera-rays");
   try {
     // No output may be an input (or another output): compared by device and inode.
-    for (const std::string* out : {&hits_path, &shading_path}) {
+    for (const std::string* out : {&hits_path, &shading_path, &image_path}) {
       rtp::check_not_same_file(package, *out);
       rtp::check_not_same_file(rays_path, *out);
     }
     if (!make_rays.empty()) rtp::check_not_same_file(package, rays_path);  // the ray file is written then
     rtp::check_not_same_file(hits_path, shading_path);
-    if (hits_path == shading_path || (!make_rays.empty() && rays_path == hits_path))
-      throw rtp::Error(rtp::ExitCode::kUsage, "two outputs name the same file '" + hits_path + "'");
-    rtp::check_output_path(hits_path);
+    rtp::check_not_same_file(hits_path, image_path);
+    rtp::check_not_same_file(shading_path, image_path);
+    if ((!hits_path.empty() && (hits_path == shading_path || hits_path == image_path)) ||
+        (!shading_path.empty() && shading_path == image_path) || (!make_rays.empty() && rays_path == hits_path))
+      throw rtp::Error(rtp::ExitCode::kUsage, "two outputs name the same file");
+    if (!hits_path.empty()) rtp::check_output_path(hits_path);
+    if (render) rtp::check_output_path(image_path);
     if (!shading_path.empty()) {
       if (any) throw rtp::Error(rtp::ExitCode::kUsage, "--shading needs closest hits: it cannot be used with --any");
       rtp::check_output_path(shading_path);
     }
     const rtp::PackageReader reader(package, direct);
     const auto tracer = rtp::load_package_in_core(reader);
+    std::vector<rtp::fmt::Ray> rays;
+    std::string camera_text;
     if (!make_rays.empty()) {
       int w = 0, h = 0;
-      if (std::sscanf(make_rays.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
+      if (!parse_size(make_rays, &w, &h))
         throw rtp::Error(rtp::ExitCode::kUsage, "--make-camera-rays " + make_rays + ": expected WxH, e.g. 640x480");
       rtp::check_output_path(rays_path);
-      const auto cr = camera_rays(reader, w, h);
-      rtp::write_output_file(rays_path, cr.data(), cr.size() * sizeof(rtp::fmt::Ray));
+      const rtp::CameraRays cr = rtp::camera_rays(reader, w, h, camera);
+      rtp::write_output_file(rays_path, cr.rays.data(), cr.rays.size() * sizeof(rtp::fmt::Ray));
     }
-    const std::vector<rtp::fmt::Ray> rays = rtp::read_ray_file(rays_path);
+    if (render) {
+      rtp::CameraRays cr = rtp::camera_rays(reader, img_w, img_h, camera);
+      rays = std::move(cr.rays);
+      camera_text = cr.description;
+    } else {
+      rays = rtp::read_ray_file(rays_path);
+    }
     rtp::PackageTraceOptions opt;
     opt.cull = !no_cull;
     const rtp::Isa best = rtp::detect_isa();
@@ -167,21 +155,45 @@ int main(int argc, char** argv) {
       rtp::write_output_file(hits_path, occ.data(), occ.size());
     } else {
       for (const auto& h : hits) hit_count += h.t != std::numeric_limits<float>::infinity();
-      if (!shading_path.empty()) {  // written first: the hit file appears only when everything succeeded
+      std::vector<rtp::fmt::Shading> shading;
+      bool stored_normals = false;
+      rtp::image::Shade shade_mode = rtp::image::Shade::kNormal;
+      rtp::image::parse_shade(shade_name, &shade_mode);
+      const bool need_normals = render && shade_mode != rtp::image::Shade::kDepth;
+      if (!shading_path.empty() || need_normals) {
         const rtp::AttributeLookup lookup(reader);
-        if (!lookup.has_normals() && !lookup.has_uvs())
+        stored_normals = lookup.has_normals();
+        if (!shading_path.empty() && !lookup.has_normals() && !lookup.has_uvs())
           std::cerr << "warning: " << package << ": no attribute streams (convert with --attributes normal,uv); "
                     << "--shading writes zeros\n";
-        std::vector<rtp::fmt::Shading> shading(hits.size());
-        tbb::parallel_for(size_t(0), hits.size(), [&](size_t i) { shading[i] = lookup.shade(hits[i]); });
-        rtp::write_output_file(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
+        if (!shading_path.empty() || stored_normals) {
+          shading.resize(hits.size());
+          tbb::parallel_for(size_t(0), hits.size(), [&](size_t i) { shading[i] = lookup.shade(hits[i]); });
+        }
       }
-      rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
+      // Written first: the hit file appears only when everything succeeded.
+      if (!shading_path.empty())
+        rtp::write_output_file(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
+      if (render) {
+        const rtp::image::Rgb8 img = rtp::image::shade(rays.data(), hits.data(), img_w, img_h, shade_mode,
+                                                       stored_normals ? shading.data() : nullptr);
+        const std::vector<uint8_t> png = rtp::image::encode_png(img);
+        rtp::write_output_file(image_path, png.data(), png.size());
+        const char* normals = shade_mode == rtp::image::Shade::kDepth ? ""
+                              : stored_normals                         ? ", stored normals"
+                                                                       : ", normals from neighbouring hits";
+        if (!json)
+          std::fprintf(stderr, "image: %s, %dx%d, %s, shade %s%s\n", image_path.c_str(), img_w, img_h, camera_text.c_str(),
+                       shade_name.c_str(), normals);
+      }
+      if (!hits_path.empty()) rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     }
     nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
+    if (render)
+      j["image"] = {{"path", image_path}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
     const bool culling = opt.cull && tracer->has_dags();
     const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;

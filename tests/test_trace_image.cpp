@@ -1,0 +1,152 @@
+// rtpack-trace --image: the camera's primary rays traced through a package and shaded, pixel by pixel
+// against the hit file of the same rays; cameras, sizes and usage errors.
+#include <gtest/gtest.h>
+#include <stb_image.h>
+
+#include <cstring>
+#include <set>
+
+#include "formats/ray_file.h"
+#include "gltf_builder.h"
+#include "image/image.h"
+#include "tool_run.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+template <class T>
+std::vector<T> read_records(const fs::path& p) {
+  const std::string b = slurp_file(p);
+  std::vector<T> v(b.size() / sizeof(T));
+  std::memcpy(v.data(), b.data(), v.size() * sizeof(T));
+  return v;
+}
+
+struct Png {
+  int w = 0, h = 0;
+  std::vector<uint8_t> rgb;
+};
+
+Png load_png(const fs::path& p) {
+  const std::string b = slurp_file(p);
+  Png png;
+  int c = 0;
+  uint8_t* px = stbi_load_from_memory(reinterpret_cast<const uint8_t*>(b.data()), int(b.size()), &png.w, &png.h, &c, 3);
+  if (!px) return png;
+  png.rgb.assign(px, px + size_t(png.w) * png.h * 3);
+  stbi_image_free(px);
+  return png;
+}
+
+class TraceImage : public ::testing::Test {
+ protected:
+  static fs::path dir;
+  static fs::path gallery;  // gallery.glb converted: 12 instances, 2 glTF cameras
+  static void SetUpTestSuite() {
+    dir = temp_dir("TraceImage");
+    gallery = dir / "gallery.rtp";
+    const ToolResult r = run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir); }
+  ToolResult trace(const std::vector<std::string>& args) { return run_tool("rtpack-trace", args, dir); }
+};
+fs::path TraceImage::dir, TraceImage::gallery;
+
+TEST_F(TraceImage, InstanceColoursMatchTheHitsRayByRay) {
+  const fs::path png = dir / "inst.png", hits = dir / "inst.hits", rays = dir / "cam.rays", hits2 = dir / "cam.hits";
+  const ToolResult r = trace({gallery.string(), "--image", png.string(), "--size", "96x64", "--shade", "instance", "--hits", hits.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("image: " + png.string() + ", 96x64, camera 0"), std::string::npos) << r.err;
+  // The image's rays are the camera rays --make-camera-rays writes: the same hits, byte for byte.
+  ASSERT_EQ(trace({gallery.string(), "--make-camera-rays", "96x64", "--rays", rays.string(), "--hits", hits2.string()}).code, 0);
+  EXPECT_EQ(slurp_file(hits), slurp_file(hits2));
+  const auto h = read_records<fmt::Hit>(hits);
+  const Png img = load_png(png);
+  ASSERT_EQ(img.w, 96);
+  ASSERT_EQ(img.h, 64);
+  ASSERT_EQ(h.size(), 96u * 64u);
+  size_t hit_pixels = 0;
+  std::set<uint32_t> instances;
+  for (size_t i = 0; i < h.size(); ++i) {
+    const uint8_t* p = &img.rgb[i * 3];
+    if (h[i].instance == fmt::Hit::kNone) {
+      ASSERT_TRUE(p[0] == image::kBackground[0] && p[1] == image::kBackground[1] && p[2] == image::kBackground[2]) << "pixel " << i;
+      continue;
+    }
+    ++hit_pixels;
+    instances.insert(h[i].instance);
+    // The instance's colour times one factor k in [0.3, 1] in every channel.
+    const auto c = image::instance_color(h[i].instance);
+    const double k = double(p[0] + p[1] + p[2]) / double(c[0] + c[1] + c[2]);
+    ASSERT_GE(k, 0.29) << "pixel " << i;
+    ASSERT_LE(k, 1.01) << "pixel " << i;
+    for (int ch = 0; ch < 3; ++ch) ASSERT_NEAR(p[ch], c[size_t(ch)] * k, 2.0) << "pixel " << i << " instance " << h[i].instance;
+  }
+  EXPECT_GT(hit_pixels, h.size() / 100);  // the gallery is sparse: about 2.6 % of camera 0's view
+  EXPECT_GE(instances.size(), 3u);
+}
+
+TEST_F(TraceImage, DepthFollowsTheHitDistance) {
+  const fs::path png = dir / "depth.png", hits = dir / "depth.hits";
+  ASSERT_EQ(trace({gallery.string(), "--image", png.string(), "--size", "48x32", "--shade", "depth", "--hits", hits.string()}).code, 0);
+  const auto h = read_records<fmt::Hit>(hits);
+  const Png img = load_png(png);
+  ASSERT_EQ(img.rgb.size(), h.size() * 3);
+  for (size_t i = 0; i < h.size(); ++i)
+    for (size_t j = 0; j < h.size(); ++j)
+      if (h[i].instance != fmt::Hit::kNone && h[j].instance != fmt::Hit::kNone && h[i].t < h[j].t) {
+        ASSERT_GE(img.rgb[i * 3], img.rgb[j * 3]) << "pixel " << i << " (t " << h[i].t << ") vs " << j << " (t " << h[j].t << ")";
+      }
+}
+
+TEST_F(TraceImage, CamerasAndTheAutomaticOne) {
+  const fs::path h0 = dir / "c0.hits", h1 = dir / "c1.hits";
+  ASSERT_EQ(trace({gallery.string(), "--image", (dir / "c0.png").string(), "--size", "32x24", "--hits", h0.string()}).code, 0);
+  const ToolResult one = trace({gallery.string(), "--image", (dir / "c1.png").string(), "--size", "32x24", "--camera", "1", "--hits", h1.string()});
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_NE(one.err.find("camera 1"), std::string::npos) << one.err;
+  EXPECT_NE(slurp_file(h0), slurp_file(h1));
+  const ToolResult none = trace({gallery.string(), "--image", (dir / "c2.png").string(), "--camera", "2"});
+  EXPECT_EQ(none.code, 1);
+  EXPECT_NE(none.err.find("camera 2: the package has 2 cameras (0 to 1)"), std::string::npos) << none.err;
+  EXPECT_FALSE(fs::exists(dir / "c2.png"));
+  // Suzanne has no camera: an automatic one frames the bounds, and the model fills part of the image.
+  const fs::path suz = dir / "suzanne.rtp";
+  ASSERT_EQ(run_tool("rtpack-convert", {(source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string(), "-q", "-o", suz.string()}, dir).code, 0);
+  const ToolResult a = trace({suz.string(), "--image", (dir / "s.png").string(), "--size", "40x40", "--hits", (dir / "s.hits").string()});
+  ASSERT_EQ(a.code, 0) << a.err;
+  EXPECT_NE(a.err.find("automatic camera"), std::string::npos) << a.err;
+  size_t hit = 0;
+  for (const auto& x : read_records<fmt::Hit>(dir / "s.hits")) hit += x.instance != fmt::Hit::kNone;
+  EXPECT_GT(hit, 40u * 40u / 20);
+  EXPECT_LT(hit, 40u * 40u);
+}
+
+TEST_F(TraceImage, UsageErrorsWriteNothing) {
+  const std::string png = (dir / "u.png").string(), g = gallery.string();
+  const struct {
+    std::vector<std::string> args;
+    const char* says;
+  } cases[] = {
+      {{g, "--image", png, "--rays", (dir / "x.rays").string()}, "leave out --rays"},
+      {{g, "--image", png, "--any"}, "cannot be used with --any"},
+      {{g, "--image", png, "--size", "0x5"}, "--size 0x5: expected WxH"},
+      {{g, "--image", png, "--size", "64x"}, "expected WxH"},
+      {{g, "--image", png, "--shade", "phong"}, "--shade"},
+      {{g, "--hits", (dir / "h").string()}, "--rays and --hits are required"},
+      {{g, "--rays", (dir / "x.rays").string(), "--hits", (dir / "h").string(), "--shade", "depth"}, "belong to --image"},
+      {{g, "--image", (dir / "no-such-dir" / "u.png").string()}, "no directory"},
+  };
+  for (const auto& c : cases) {
+    const ToolResult r = trace(c.args);
+    EXPECT_NE(r.code, 0) << c.says;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << c.says << ": " << r.err;
+    EXPECT_FALSE(fs::exists(png)) << c.says;
+  }
+}
+
+}  // namespace
+}  // namespace rtp::test
