@@ -85,5 +85,112 @@ TEST_F(Conventions, JsonTextStillReachesTheParser) {
   EXPECT_EQ(none.err.find("not a glTF file"), std::string::npos) << none.err;
 }
 
+TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
+  // FlightHelmet.gltf: the JSON and its 3 MB .bin are read; its 15 images are named, never read (the
+  // texture files are not in samples/, so they count 0 bytes).
+  const fs::path helmet = source_dir() / "samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf";
+  const ToolResult r = run_tool("rtpack-convert", {helmet.string(), "--json", "-q", "-o", (dir / "h.rtp").string()}, dir, {}, 120);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const uint64_t gltf = fs::file_size(helmet), bin = fs::file_size(helmet.parent_path() / "FlightHelmet.bin");
+  EXPECT_EQ(j["input_bytes"].get<uint64_t>(), gltf + bin);
+  EXPECT_EQ(j["input_files"]["gltf_bytes"].get<uint64_t>(), gltf);
+  EXPECT_EQ(j["input_files"]["buffer_bytes"].get<uint64_t>(), bin);
+  EXPECT_EQ(j["input_files"]["buffer_files"].get<int>(), 1);
+  EXPECT_EQ(j["input_files"]["images_not_read"].get<int>(), 15);
+  EXPECT_EQ(j["input_files"]["image_file_bytes_not_read"].get<uint64_t>(), 0u);
+  EXPECT_EQ(j["instances"].get<uint64_t>(), 6u);
+  EXPECT_DOUBLE_EQ(j["bytes_per_instance"].get<double>(), double(j["output_bytes"].get<uint64_t>()) / 6.0);
+
+  // A .gltf with an external buffer, an image file that exists and one that does not: the buffer is read,
+  // the images are counted (the present one by its size); the summary says what was read and what not.
+  GltfBuilder b = one_triangle();
+  b.write_gltf_external(dir / "t.gltf", "t.bin");
+  nlohmann::json d = nlohmann::json::parse(slurp_file(dir / "t.gltf"));
+  d["images"] = nlohmann::json::array({{{"uri", "tex%20a.png"}}, {{"uri", "missing.png"}}});
+  std::ofstream(dir / "t.gltf", std::ios::binary | std::ios::trunc) << d.dump();
+  write("tex a.png", std::string(1234, 'x'));
+  const ToolResult t = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "--json", "-q", "-o", (dir / "t.rtp").string()}, dir);
+  ASSERT_EQ(t.code, 0) << t.err;
+  const auto tj = nlohmann::json::parse(t.out);
+  EXPECT_EQ(tj["input_bytes"].get<uint64_t>(), fs::file_size(dir / "t.gltf") + fs::file_size(dir / "t.bin"));
+  EXPECT_EQ(tj["input_files"]["images_not_read"].get<int>(), 2);
+  EXPECT_EQ(tj["input_files"]["image_file_bytes_not_read"].get<uint64_t>(), 1234u);
+  const ToolResult text = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "-o", (dir / "t.rtp").string()}, dir);
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find(" read (" ), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find(" glTF + 1 buffer "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("2 images not read"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("B per instance"), std::string::npos) << text.out;
+  // A .glb holds its buffer: input bytes = the file.
+  const fs::path glb = source_dir() / "samples/generated/gallery.glb";
+  const ToolResult g = run_tool("rtpack-convert", {glb.string(), "--json", "-q", "-o", (dir / "g.rtp").string()}, dir);
+  ASSERT_EQ(g.code, 0) << g.err;
+  EXPECT_EQ(nlohmann::json::parse(g.out)["input_bytes"].get<uint64_t>(), fs::file_size(glb));
+  EXPECT_EQ(nlohmann::json::parse(g.out)["input_files"]["buffer_files"].get<int>(), 0);
+}
+
+// Every --json output of every tool, success or failure, carries schema_version and tool_version;
+// failures are {"error": {"code", "input", "pointer", "message"}} with the exit code (docs/json.md).
+TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
+  const std::string suz = (source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string();
+  const std::string pkg = (dir / "s.rtp").string(), rays = (dir / "r.rays").string(), hits = (dir / "h.hits").string();
+  ASSERT_EQ(run_tool("rtpack-convert", {suz, "-q", "-o", pkg}, dir).code, 0);
+  ASSERT_EQ(run_tool("rtpack-trace", {pkg, "--make-camera-rays", "8x8", "--rays", rays, "--hits", hits}, dir).code, 0);
+  const struct {
+    std::string tool;
+    std::vector<std::string> args;
+  } runs[] = {
+      {"rtpack-convert", {suz, "--dry-run", "--json"}},
+      {"rtpack-convert", {suz, "--json", "-o", (dir / "t.rtp").string()}},
+      {"rtpack-inspect", {pkg, "--json"}},
+      {"rtpack-inspect", {pkg, "--json", "--verify", "--chunks"}},
+      {"rtpack-trace", {pkg, "--rays", rays, "--hits", hits, "--json"}},
+      {"rtpack-trace", {pkg, "--image", (dir / "i.png").string(), "--size", "8x8", "--json"}},
+      {"rtpack-bench", {suz, "--rays", "256", "--reps", "1", "--threads", "1", "--width", "4", "--order", "octant",
+                        "--kinds", "random", "--json"}},
+      {"rtpack-bench", {suz, "--convert", "--reps", "1", "--threads", "1", "--json"}},
+  };
+  for (const auto& r : runs) {
+    const ToolResult t = run_tool(r.tool, r.args, dir, {}, 120);
+    ASSERT_EQ(t.code, 0) << r.tool << ": " << t.err;
+    const auto j = nlohmann::json::parse(t.out);
+    const std::vector<nlohmann::json> objects = j.is_array() ? std::vector<nlohmann::json>(j.begin(), j.end()) : std::vector{j};
+    ASSERT_FALSE(objects.empty()) << r.tool;
+    for (const auto& o : objects) {
+      EXPECT_EQ(o.value("schema_version", 0), 1) << r.tool << ": " << o.dump().substr(0, 200);
+      EXPECT_EQ(o.value("tool_version", "").rfind(r.tool + " ", 0), 0u) << r.tool;
+    }
+  }
+  // Failures: a glTF error names its pointer; a package error has none; the text still goes to stderr.
+  GltfBuilder b = one_triangle();
+  b.j["nodes"][0]["mesh"] = 3;
+  const std::string bad = b.write_glb(dir / "bad.glb");
+  const ToolResult e = run_tool("rtpack-convert", {bad, "--json", "-o", (dir / "bad.rtp").string()}, dir);
+  EXPECT_EQ(e.code, 3);
+  const auto ej = nlohmann::json::parse(e.out);
+  EXPECT_EQ(ej["schema_version"], 1);
+  EXPECT_EQ(ej["error"]["code"], 3);
+  EXPECT_EQ(ej["error"]["input"], bad);
+  EXPECT_EQ(ej["error"]["pointer"], "/nodes/0/mesh");
+  EXPECT_EQ(ej["error"]["message"], "/nodes/0/mesh: mesh 3 out of range (1 meshes)");
+  EXPECT_EQ(e.err, "error: " + bad + ": /nodes/0/mesh: mesh 3 out of range (1 meshes)\n");
+  const std::string trunc = write("cut.rtp", slurp_file(pkg).substr(0, 5000)).string();
+  for (const std::string tool : {"rtpack-inspect", "rtpack-trace"}) {
+    std::vector<std::string> args = {trunc, "--json"};
+    if (tool == "rtpack-trace") args.insert(args.end(), {"--rays", rays, "--hits", (dir / "h2").string()});
+    const ToolResult f = run_tool(tool, args, dir);
+    EXPECT_EQ(f.code, 3) << tool << ": " << f.err;
+    const auto fj = nlohmann::json::parse(f.out);
+    EXPECT_EQ(fj["schema_version"], 1) << tool;
+    EXPECT_EQ(fj["error"]["code"], 3) << tool;
+    EXPECT_TRUE(fj["error"]["pointer"].is_null()) << tool;
+    EXPECT_NE(fj["error"]["message"].get<std::string>().find("truncated"), std::string::npos) << tool << ": " << f.out;
+  }
+  const ToolResult m = run_tool("rtpack-bench", {(dir / "none.glb").string(), "--convert", "--json"}, dir);
+  EXPECT_EQ(m.code, 2);
+  EXPECT_EQ(nlohmann::json::parse(m.out)["error"]["code"], 2);
+}
+
 }  // namespace
 }  // namespace rtp::test

@@ -41,6 +41,7 @@
 #include "package/package.h"
 #include "package/write_package.h"
 #include "scene/import.h"
+#include "tool_version.h"
 
 namespace rtp::bench {
 namespace {
@@ -278,6 +279,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"hardware_threads", hw},
                 {"reps", cfg.reps},
                 {"cpu", cpu}};
+    rec.update(rtp::tools::json_stamp("rtpack-bench"));
     std::cout << json::array({rec}).dump(1) << "\n";
   }
 

@@ -68,6 +68,7 @@
 #include "voxel/point_voxels.h"
 #include "voxel/voxel.h"
 #include "bench_dag_parts.h"
+#include "tool_version.h"
 
 namespace rtp::bench {
 namespace {
@@ -227,6 +228,7 @@ int run_dag_bench(const DagBenchConfig& cfg) {
                      {"reps", cfg.reps},
                      {"cpu", cpu}});
     }
+    for (auto& rec : out) rec.update(rtp::tools::json_stamp("rtpack-bench"));
     std::cout << out.dump(1) << "\n";
   }
 

@@ -399,6 +399,7 @@ int run(const Config& cfg) {
                      {"bytes_per_triangle",
                       double(r.stats.node_bytes + r.stats.block_bytes) / double(std::max<uint64_t>(1, r.stats.primitives))},
                      {"build_s", r.build_seconds}});
+    for (auto& rec : out) rec.update(rtp::tools::json_stamp("rtpack-bench"));
     std::cout << out.dump(1) << "\n";
   }
 
@@ -550,15 +551,12 @@ int main(int argc, char** argv) {
     return run(cfg);
   } catch (const Error& e) {
     progress_done();
-    std::cerr << "error: " << cfg.scene_path << ": " << e.what() << "\n";
-    return int(e.code());
+    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, e.code(), e.what());
   } catch (const std::bad_alloc&) {
     progress_done();
-    std::cerr << "error: " << cfg.scene_path << ": out of memory\n";
-    return int(ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
     progress_done();
-    std::cerr << "error: " << cfg.scene_path << ": internal error: " << e.what() << "\n";
-    return int(ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
   }
 }

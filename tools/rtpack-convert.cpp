@@ -132,6 +132,7 @@ int main(int argc, char** argv) {
       if (json) {
         nlohmann::json j = rtp::scene_summary_json(scene);
         j["preparation"] = rtp::prepare_report_json(report);
+        j.update(rtp::tools::json_stamp("rtpack-convert"));
         std::cout << j.dump(2) << "\n";
       } else {
         std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(report);
@@ -166,7 +167,10 @@ int main(int argc, char** argv) {
     const rtp::ConvertReport rep = rtp::write_package(scene, plan, output, cv);
     const auto t4 = Clock::now();
     progress.finish();
-    const double in_bytes = double(std::filesystem::file_size(input));
+    // Input = what the importer read: the glTF/.glb and its external buffers (images are never read).
+    const rtp::InputFiles& inf = scene.input;
+    const double in_bytes = double(inf.read_bytes());
+    const double per_instance = double(rep.file_bytes) / double(std::max<size_t>(1, scene.instances.size()));
     const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
     nlohmann::json sections = nlohmann::json::object();
     for (const auto& [kind, s] : rep.by_kind)
@@ -174,7 +178,10 @@ int main(int argc, char** argv) {
                         {"bytes_per_unique_triangle", double(s.stored) / tris}};
     nlohmann::json j = {{"input", rtp::utf8_display(input)},
                         {"output", rtp::utf8_display(output)},
-                        {"input_bytes", uint64_t(in_bytes)},
+                        {"input_bytes", inf.read_bytes()},
+                        {"input_files", {{"gltf_bytes", inf.gltf_bytes}, {"buffer_bytes", inf.buffer_bytes},
+                                         {"buffer_files", inf.buffer_files}, {"images_not_read", inf.images},
+                                         {"image_file_bytes_not_read", inf.image_file_bytes}}},
                         {"output_bytes", rep.file_bytes},
                         {"chunks", rep.chunks},
                         {"batching_points", plan.points.size()},
@@ -182,7 +189,9 @@ int main(int argc, char** argv) {
                         {"chunk_target", plan.chunk_target},
                         {"unique_triangles", scene.unique_triangles()},
                         {"instanced_triangles", scene.instanced_triangles()},
+                        {"instances", scene.instances.size()},
                         {"bytes_per_unique_triangle", double(rep.file_bytes) / tris},
+                        {"bytes_per_instance", per_instance},
                         {"sections", sections},
                         {"dag", nlohmann::json::object()},
                         {"seconds", {{"import", seconds(t0, t1)}, {"prepare", seconds(t1, t2)}, {"plan", seconds(t2, t3)},
@@ -194,6 +203,7 @@ int main(int argc, char** argv) {
       j["dag"] = {{"pool_bytes", rep.dag_pool_bytes}, {"separate_bytes", rep.dag_separate_bytes},
                   {"set_cells", rep.dag_set_cells}, {"resolutions", hist}, {"voxelize_seconds", rep.voxelize_seconds}};
     }
+    j.update(rtp::tools::json_stamp("rtpack-convert"));
     if (json) {
       std::cout << j.dump(2) << "\n";
     } else if (!quiet) {
@@ -203,8 +213,13 @@ int main(int argc, char** argv) {
       std::printf("  chunks         %llu (%zu batching points, %zu mesh segments; target %llu triangles)\n",
                   (unsigned long long)rep.chunks, plan.points.size(), plan.segments.size(),
                   (unsigned long long)plan.chunk_target);
-      std::printf("  bytes          %s -> %s (%.1f B per unique triangle)\n", human(in_bytes).c_str(),
-                  human(double(rep.file_bytes)).c_str(), double(rep.file_bytes) / tris);
+      std::string read = human(in_bytes) + " read";
+      if (inf.buffer_files > 0)
+        read += " (" + human(double(inf.gltf_bytes)) + " glTF + " + std::to_string(inf.buffer_files) +
+                (inf.buffer_files == 1 ? " buffer " : " buffers ") + human(double(inf.buffer_bytes)) + ")";
+      if (inf.images > 0) read += ", " + std::to_string(inf.images) + (inf.images == 1 ? " image" : " images") + " not read";
+      std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %.1f B per instance)\n", read.c_str(),
+                  human(double(rep.file_bytes)).c_str(), double(rep.file_bytes) / tris, per_instance);
       for (const auto& [kind, s] : rep.by_kind)
         std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
                     human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
@@ -220,16 +235,13 @@ int main(int argc, char** argv) {
     }
   } catch (const rtp::Error& e) {
     progress.finish();
-    std::cerr << "error: " << input << ": " << e.what() << "\n";
-    return int(e.code());
+    return rtp::tools::report_error("rtpack-convert", json, input, e.code(), e.what());
   } catch (const std::bad_alloc&) {
     progress.finish();
-    std::cerr << "error: " << input << ": out of memory\n";
-    return int(rtp::ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
     progress.finish();
-    std::cerr << "error: " << input << ": internal error: " << e.what() << "\n";
-    return int(rtp::ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
   }
   return 0;
 }

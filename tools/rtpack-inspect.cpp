@@ -243,6 +243,7 @@ int main(int argc, char** argv) {
     const rtp::InspectResult r = rtp::inspect_package(reader, opt);
     nlohmann::json j = r.report;
     j["file"] = rtp::utf8_display(input);  // any bytes in the name: valid JSON
+    j.update(rtp::tools::json_stamp("rtpack-inspect"));
     if (json_out) {
       std::cout << j.dump(2) << "\n";
     } else {
@@ -255,14 +256,11 @@ int main(int argc, char** argv) {
       return int(rtp::ExitCode::kInputInvalid);
     }
   } catch (const rtp::Error& e) {
-    std::cerr << "error: " << input << ": " << e.what() << "\n";
-    return int(e.code());
+    return rtp::tools::report_error("rtpack-inspect", json_out, input, e.code(), e.what());
   } catch (const std::bad_alloc&) {
-    std::cerr << "error: " << input << ": out of memory\n";
-    return int(rtp::ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
-    std::cerr << "error: " << input << ": internal error: " << e.what() << "\n";
-    return int(rtp::ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
   }
   return 0;
 }

@@ -208,6 +208,7 @@ int main(int argc, char** argv) {
     j["load_check_seconds"] = ls.check_seconds;
     j["chunks_loaded"] = ls.chunks;
     j["chunk_raw_bytes"] = ls.raw_bytes;
+    j.update(rtp::tools::json_stamp("rtpack-trace"));
     if (json) std::cout << j.dump(2) << "\n";
     else {
       std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
@@ -222,11 +223,11 @@ int main(int argc, char** argv) {
                    j["culling"].get<std::string>().c_str());
     }
   } catch (const rtp::Error& e) {
-    std::cerr << "error: " << package << ": " << e.what() << "\n";
-    return int(e.code());
+    return rtp::tools::report_error("rtpack-trace", json, package, e.code(), e.what());
+  } catch (const std::bad_alloc&) {
+    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
-    std::cerr << "error: " << package << ": internal error: " << e.what() << "\n";
-    return int(rtp::ExitCode::kInternal);
+    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
   }
   return 0;
 }

@@ -1,11 +1,20 @@
 #pragma once
-// `--version` for every tool: the rtpack release and the package format version it writes and reads
-// (formats/SPEC.md §1: a reader refuses another major version).
+// What every tool shares at its edges: `--version` (the rtpack release and the package format version it
+// writes and reads, formats/SPEC.md §1), the fields every `--json` object carries (docs/json.md), and
+// failures reported as JSON on stdout too when `--json` was asked for.
 #include <CLI/CLI.hpp>
+#include <iostream>
+#include <nlohmann/json.hpp>
 #include <string>
+
+#include "core/error.h"
+#include "core/utf8.h"
 #include "formats/package.h"
 
 namespace rtp::tools {
+
+// Bumped when a key of any tool's --json output changes meaning or disappears (adding keys does not).
+inline constexpr int kJsonSchemaVersion = 1;
 
 inline std::string version_line(const char* tool) {
   return std::string(tool) + " " RTP_VERSION " (package format " + std::to_string(fmt::kVersionMajor) + "." +
@@ -14,6 +23,29 @@ inline std::string version_line(const char* tool) {
 
 inline void add_version_flag(CLI::App& app, const char* tool) {
   app.set_version_flag("--version", version_line(tool), "print the rtpack and package format versions, exit 0");
+}
+
+// The first keys of every --json object (or of every record of a JSON array).
+inline nlohmann::json json_stamp(const char* tool) {
+  return {{"schema_version", kJsonSchemaVersion}, {"tool_version", version_line(tool)}};
+}
+
+// A failure: "error: INPUT: MESSAGE" on stderr, and with --json also on stdout as
+// {"schema_version", "tool_version", "error": {"code", "input", "pointer", "message"}} where pointer is the
+// JSON pointer that starts the message (glTF errors, e.g. "/nodes/0/mesh") or null. Returns the exit code.
+inline int report_error(const char* tool, bool json, const std::string& input, ExitCode code, const std::string& message) {
+  std::cerr << "error: " << input << ": " << message << "\n";
+  if (json) {
+    nlohmann::json pointer = nullptr;
+    if (!message.empty() && message[0] == '/') {
+      const size_t colon = message.find(": ");
+      if (colon != std::string::npos) pointer = utf8_display(message.substr(0, colon));
+    }
+    nlohmann::json j = json_stamp(tool);
+    j["error"] = {{"code", int(code)}, {"input", utf8_display(input)}, {"pointer", pointer}, {"message", utf8_display(message)}};
+    std::cout << j.dump(2) << "\n";
+  }
+  return int(code);
 }
 
 }  // namespace rtp::tools

@@ -30,6 +30,7 @@ struct [[gnu::visibility("hidden")]] Document {
   nlohmann::json json;
   tinygltf::Model model;
   std::vector<std::string> warnings;
+  InputFiles input;  // the file, the external buffers approved for reading, the images (not read)
 };
 
 // Reads the file (a regular file only), checks the container (.glb header and chunks, file size), parses and validates

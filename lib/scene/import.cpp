@@ -47,6 +47,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   gltf::Document doc = gltf::load_document(path, options.allowed_dirs);
   Scene scene;
   scene.source_path = path;
+  scene.input = doc.input;
   const int n_scenes = int(doc.model.scenes.size());
   int which = options.scene;
   if (which >= 0 && which >= n_scenes)

@@ -162,6 +162,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
   const Fd in{open_input_file(path, "", 0, &file_size)};  // regular files only; a FIFO never blocks
   const fs::path abs = fs::absolute(path, ec);
   doc.base_dir = abs.parent_path().string();
+  doc.input.gltf_bytes = file_size;
   if (file_size >= k4GiB)
     fail_invalid("file is " + std::to_string(file_size) +
                  " bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
@@ -290,6 +291,8 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
           fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but '" + uri + "' has " + std::to_string(real) +
                        " bytes (the file must be exactly byteLength bytes)");
         approved[join_path(doc.base_dir, percent_decode(uri))] = Approved{p.string(), uint64_t(real)};
+        doc.input.buffer_bytes += uint64_t(real);  // tinygltf reads each buffer's file (fs_read)
+        ++doc.input.buffer_files;
       }
       if (real >= 0 && uint64_t(real) < declared)
         fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but only " + std::to_string(real) +
@@ -298,6 +301,18 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     }
   }
   validate_json(j, sizes);
+  // Images are never read; counted (and external files sized with stat) so the summary can say so.
+  if (const json* images = jsonc::find(j, "images"); images && images->is_array()) {
+    doc.input.images = uint32_t(images->size());
+    for (const json& im : *images) {
+      if (!im.is_object() || !im.contains("uri") || !im["uri"].is_string()) continue;
+      const std::string uri = im["uri"].get<std::string>();
+      if (is_data_uri(uri)) continue;
+      struct stat st{};
+      if (::stat(join_path(doc.base_dir, percent_decode(uri)).c_str(), &st) == 0 && S_ISREG(st.st_mode))
+        doc.input.image_file_bytes += uint64_t(st.st_size);
+    }
+  }
 
   // tinygltf does not know EXT_meshopt_compression: give each fallback buffer a 1-byte placeholder,
   // decode the compressed views into it afterwards.

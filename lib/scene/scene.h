@@ -63,8 +63,20 @@ struct Camera {
   Affine3x4 world;  // camera -> world, rotation + translation only (scale stripped)
 };
 
+// What the importer read to build the scene (rtpack-convert's input bytes): the glTF or .glb file and
+// its external buffers. Images are never read (a tracer needs no textures); they are counted apart.
+struct InputFiles {
+  uint64_t gltf_bytes = 0;    // the .gltf or .glb file
+  uint64_t buffer_bytes = 0;  // external .bin buffers read (data URIs and the .glb BIN chunk are in gltf_bytes)
+  uint32_t buffer_files = 0;
+  uint32_t images = 0;             // glTF images (none is read)
+  uint64_t image_file_bytes = 0;   // sizes of the external image files that exist (stat only)
+  uint64_t read_bytes() const { return gltf_bytes + buffer_bytes; }
+};
+
 struct Scene {
   std::string source_path;
+  InputFiles input;
   int gltf_scene = -1;
   std::vector<Mesh> meshes;
   std::vector<Instance> instances;

@@ -464,7 +464,12 @@ class Refusals(unittest.TestCase):
         print(f"  {name}: {type(cm.exception).__name__}: {msg}", file=sys.stderr)
         proc, report = inspect(path, check=False)
         self.assertEqual(proc.returncode, 3, proc.stderr)
-        cpp = (report["problems"]["listed"] if report else []) + [proc.stderr]
+        # --verify lists problems; a package refused before that is {"error": {...}} (docs/json.md).
+        if report and "error" in report:
+            self.assertEqual(report["error"]["code"], 3)
+            self.assertEqual(report["schema_version"], 1)
+        listed = report["problems"]["listed"] if report and "problems" in report else []
+        cpp = listed + ([report["error"]["message"]] if report and "error" in report else []) + [proc.stderr]
         self.assertTrue(any(msg in m for m in cpp), f"python: {msg}\nC++: {cpp}")
         return msg
 
