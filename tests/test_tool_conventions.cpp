@@ -107,20 +107,26 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   GltfBuilder b = one_triangle();
   b.write_gltf_external(dir / "t.gltf", "t.bin");
   nlohmann::json d = nlohmann::json::parse(slurp_file(dir / "t.gltf"));
-  d["images"] = nlohmann::json::array({{{"uri", "tex%20a.png"}}, {{"uri", "missing.png"}}});
+  // A third image names a file outside the glTF's directory: counted, never sized (its size would tell
+  // the --json reader what exists there).
+  const fs::path outside = dir.parent_path() / (dir.filename().string() + "-outside.png");
+  std::ofstream(outside, std::ios::binary) << std::string(777, 'y');
+  d["images"] = nlohmann::json::array({{{"uri", "tex%20a.png"}}, {{"uri", "missing.png"}},
+                                       {{"uri", "../" + outside.filename().string()}}});
   std::ofstream(dir / "t.gltf", std::ios::binary | std::ios::trunc) << d.dump();
   write("tex a.png", std::string(1234, 'x'));
   const ToolResult t = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "--json", "-q", "-o", (dir / "t.rtp").string()}, dir);
   ASSERT_EQ(t.code, 0) << t.err;
   const auto tj = nlohmann::json::parse(t.out);
   EXPECT_EQ(tj["input_bytes"].get<uint64_t>(), fs::file_size(dir / "t.gltf") + fs::file_size(dir / "t.bin"));
-  EXPECT_EQ(tj["input_files"]["images_not_read"].get<int>(), 2);
+  fs::remove(outside);
+  EXPECT_EQ(tj["input_files"]["images_not_read"].get<int>(), 3);
   EXPECT_EQ(tj["input_files"]["image_file_bytes_not_read"].get<uint64_t>(), 1234u);
   const ToolResult text = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "-o", (dir / "t.rtp").string()}, dir);
   ASSERT_EQ(text.code, 0) << text.err;
   EXPECT_NE(text.out.find(" read (" ), std::string::npos) << text.out;
   EXPECT_NE(text.out.find(" glTF + 1 buffer "), std::string::npos) << text.out;
-  EXPECT_NE(text.out.find("2 images not read"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("3 images not read"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("B per instance"), std::string::npos) << text.out;
   // A .glb holds its buffer: input bytes = the file.
   const fs::path glb = source_dir() / "samples/generated/gallery.glb";

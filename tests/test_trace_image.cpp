@@ -139,13 +139,78 @@ TEST_F(TraceImage, UsageErrorsWriteNothing) {
       {{g, "--hits", (dir / "h").string()}, "--rays and --hits are required"},
       {{g, "--rays", (dir / "x.rays").string(), "--hits", (dir / "h").string(), "--shade", "depth"}, "belong to --image"},
       {{g, "--image", (dir / "no-such-dir" / "u.png").string()}, "no directory"},
+      // 2^32 + 1 wrapped to 1 when the size was read with %d.
+      {{g, "--image", png, "--size", "4294967297x1"}, "expected WxH"},
+      {{g, "--image", png, "--size", "-64x64"}, "expected WxH"},
+      {{g, "--image", png, "--size", "16385x16385"}, "expected WxH"},
+      {{g, "--make-camera-rays", "8x8", "--rays", (dir / "s").string(), "--hits", (dir / "h").string(), "--shading",
+        (dir / "s").string()},
+       "two outputs name the same file"},
   };
   for (const auto& c : cases) {
     const ToolResult r = trace(c.args);
     EXPECT_NE(r.code, 0) << c.says;
     EXPECT_NE(r.err.find(c.says), std::string::npos) << c.says << ": " << r.err;
-    EXPECT_FALSE(fs::exists(png)) << c.says;
+    // Nothing at any output path the cases name.
+    for (const char* f : {"u.png", "h", "s", "x.rays", "no-such-dir"}) EXPECT_FALSE(fs::exists(dir / f)) << c.says << ": " << f;
   }
+}
+
+TEST_F(TraceImage, UsageErrorsUnderJsonAreEnvelopes) {
+  const ToolResult r = trace({gallery.string(), "--image", (dir / "u.png").string(), "--size", "0x5", "--json"});
+  EXPECT_EQ(r.code, 1);  // ExitCode::kUsage
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["error"]["code"].get<int>(), 1);
+  EXPECT_NE(j["error"]["message"].get<std::string>().find("--size 0x5"), std::string::npos) << r.out;
+  EXPECT_EQ(j["schema_version"].get<int>(), 1);
+}
+
+TEST_F(TraceImage, SizeParsing) {
+  const ToolResult r = trace({gallery.string(), "--image", (dir / "w.png").string(), "--size", "0007x05", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["image"]["width"].get<int>(), 7);
+  EXPECT_EQ(j["image"]["height"].get<int>(), 5);
+}
+
+}  // namespace
+}  // namespace rtp::test
+
+namespace rtp::test {
+namespace {
+
+// glTF 2.0 §5.13: ymag MUST NOT be zero and SHOULD NOT be negative. The importer accepts a negative one, so
+// the image does too (by its size); zero is refused naming the camera.
+TEST(TraceImageCamera, NegativeYmagIsItsSizeAndZeroIsRefused) {
+  const fs::path dir = temp_dir("TraceImageCamera");
+  std::vector<std::string> hits;
+  for (const double ymag : {2.0, -2.0, 0.0}) {
+    GltfBuilder b = one_triangle();
+    b.j["cameras"] = nlohmann::json::array(
+        {{{"type", "orthographic"}, {"orthographic", {{"xmag", 2}, {"ymag", ymag}, {"znear", 0.01}, {"zfar", 100}}}}});
+    const int cam = b.add_node({{"camera", 0}, {"translation", {0.25, 0.25, 5}}});
+    b.set_scene({0, cam});
+    const std::string tag = ymag > 0 ? "pos" : ymag < 0 ? "neg" : "zero";
+    const fs::path rtp = dir / (tag + ".rtp"), h = dir / (tag + ".hits");
+    const ToolResult c = run_tool("rtpack-convert", {b.write_gltf(dir / (tag + ".gltf")), "-q", "-o", rtp.string()}, dir);
+    ASSERT_EQ(c.code, 0) << c.err;
+    const ToolResult r = run_tool("rtpack-trace", {rtp.string(), "--image", (dir / (tag + ".png")).string(), "--size", "16x16", "--hits", h.string()}, dir);
+    if (ymag == 0) {
+      EXPECT_EQ(r.code, 3);
+      EXPECT_NE(r.err.find("/cameras/0/ymag"), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(h));
+    } else {
+      ASSERT_EQ(r.code, 0) << r.err;
+      hits.push_back(slurp_file(h));
+    }
+  }
+  ASSERT_EQ(hits.size(), 2u);
+  EXPECT_EQ(hits[0], hits[1]);
+  const auto* hh = reinterpret_cast<const fmt::Hit*>(hits[0].data());
+  size_t n_hit = 0;
+  for (size_t i = 0; i < hits[0].size() / sizeof(fmt::Hit); ++i) n_hit += hh[i].instance != fmt::Hit::kNone;
+  EXPECT_GT(n_hit, 0u);  // the triangle is in view
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -243,7 +243,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"input_bytes", in_bytes},
                 {"input_total_bytes", in_total},
                 {"package_bytes", package_bytes},
-                {"package", keep_output ? json(cfg.output) : json(nullptr)},
+                {"package", keep_output ? json(utf8_display(cfg.output)) : json(nullptr)},
                 {"unique_triangles", c.unique},
                 {"instanced_triangles", c.instanced},
                 {"instances", c.instances},

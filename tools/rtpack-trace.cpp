@@ -8,6 +8,7 @@
 #include <cmath>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -17,6 +18,7 @@
 #include "core/json_checked.h"
 #include "core/input_file.h"
 #include "core/output_file.h"
+#include "core/utf8.h"
 #include "package/package.h"
 #include "package/chunk_io.h"
 #include "package/attribute_lookup.h"
@@ -30,8 +32,17 @@ namespace {
 
 // "WxH" with both positive and at most 2^28 pixels.
 bool parse_size(const std::string& text, int* w, int* h) {
-  char tail = 0;
-  return std::sscanf(text.c_str(), "%dx%d%c", w, h, &tail) == 2 && *w > 0 && *h > 0 && int64_t(*w) * *h <= (int64_t(1) << 28);
+  const size_t x = text.find('x');
+  if (x == std::string::npos) return false;
+  // Digits only (no sign, no spaces), each side at most 2^28: strtoll on a checked digit string cannot overflow.
+  auto side = [](const std::string& s, int* out) {
+    if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos) return false;
+    const long long v = std::strtoll(s.c_str(), nullptr, 10);
+    if (v <= 0 || v > (1LL << 28)) return false;
+    *out = int(v);
+    return true;
+  };
+  return side(text.substr(0, x), w) && side(text.substr(x + 1), h) && int64_t(*w) * *h <= (int64_t(1) << 28);
 }
 
 }  // namespace
@@ -79,7 +90,8 @@ int main(int argc, char** argv) {
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
   const bool render = !image_path.empty();
-  auto usage = [](const std::string& msg) {
+  auto usage = [&](const std::string& msg) {
+    if (json) return rtp::tools::report_error("rtpack-trace", true, package, rtp::ExitCode::kUsage, msg);
     std::cerr << "rtpack-trace: " << msg << "\nRun with --help for more information.\n";
     return int(rtp::ExitCode::kUsage);
   };
@@ -103,7 +115,8 @@ int main(int argc, char** argv) {
     rtp::check_not_same_file(hits_path, image_path);
     rtp::check_not_same_file(shading_path, image_path);
     if ((!hits_path.empty() && (hits_path == shading_path || hits_path == image_path)) ||
-        (!shading_path.empty() && shading_path == image_path) || (!make_rays.empty() && rays_path == hits_path))
+        (!shading_path.empty() && shading_path == image_path) ||
+        (!make_rays.empty() && (rays_path == hits_path || rays_path == shading_path)))
       throw rtp::Error(rtp::ExitCode::kUsage, "two outputs name the same file");
     if (!hits_path.empty()) rtp::check_output_path(hits_path);
     if (render) rtp::check_output_path(image_path);
@@ -193,7 +206,7 @@ int main(int argc, char** argv) {
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
     if (render)
-      j["image"] = {{"path", image_path}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
+      j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
     const bool culling = opt.cull && tracer->has_dags();
     const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;

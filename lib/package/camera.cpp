@@ -74,12 +74,13 @@ CameraRays camera_rays(const PackageReader& reader, int w, int h, int camera) {
     std::string name = cam.contains("name") && cam["name"].is_string() ? cam["name"].get<std::string>() : "";
     out.description = "camera " + std::to_string(ci) + (name.empty() ? "" : " '" + name + "'") + " (" + type;
     if (ortho) {
-      ymag = jsonc::get_number(cam, "ymag", cp);
-      if (!(ymag > 0) || !std::isfinite(ymag)) fail_invalid(cp + "/ymag: " + std::to_string(ymag) + " is not positive");
+      // glTF 2.0 §5.13: ymag MUST NOT be zero and SHOULD NOT be negative; a negative one is taken by its size.
+      ymag = std::fabs(jsonc::get_number(cam, "ymag", cp));
+      if (!(ymag > 0) || !std::isfinite(ymag)) fail_invalid(cp + "/ymag: " + std::to_string(ymag) + " is zero or not finite");
       out.description += ", ymag " + fixed(ymag, 3) + ")";
     } else {
       yfov = jsonc::get_number(cam, "yfov", cp);
-      if (!(yfov > 0) || !(yfov < 3.14159)) fail_invalid(cp + "/yfov: " + std::to_string(yfov) + " is not in (0, pi)");
+      if (!(yfov > 0) || !(yfov < 3.141592653589793)) fail_invalid(cp + "/yfov: " + std::to_string(yfov) + " is not in (0, pi)");
       out.description += ", yfov " + fixed(yfov * 180 / 3.141592653589793, 1) + " deg)";
     }
   } else {

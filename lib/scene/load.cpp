@@ -308,9 +308,16 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
       if (!im.is_object() || !im.contains("uri") || !im["uri"].is_string()) continue;
       const std::string uri = im["uri"].get<std::string>();
       if (is_data_uri(uri)) continue;
+      // Only files the buffers could be read from are sized: a URI reaching outside the allowed
+      // directories is counted, never stat-ed (its size would tell what exists there).
+      fs::path p;
+      try {
+        p = confined_path(uri, "/images", doc.base_dir, roots);
+      } catch (const Error&) {
+        continue;
+      }
       struct stat st{};
-      if (::stat(join_path(doc.base_dir, percent_decode(uri)).c_str(), &st) == 0 && S_ISREG(st.st_mode))
-        doc.input.image_file_bytes += uint64_t(st.st_size);
+      if (::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode)) doc.input.image_file_bytes += uint64_t(st.st_size);
     }
   }
 
