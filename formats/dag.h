@@ -22,7 +22,7 @@ inline constexpr uint32_t kDagMinResolution = 4, kDagMaxResolution = 1024;
 //                         word offset), or kDagEmpty / kDagFull
 //   24 float  margin      world distance every set cell was grown by when voxelizing (vertex and
 //                         instance-transform rounding; SPEC §4.5 states the bound)
-//   28 float  ray_rel     the ray test grows every cell further by ray_rel * (2 |org|_inf + 2 G),
+//   28 float  ray_rel     the ray test grows every cell further by ray_rel * (|org|_inf + G),
 //                         G = max |coordinate| of the grid box (rounding of the ray in the kernels)
 struct DagGrid {
   float origin[3];

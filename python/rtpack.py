@@ -85,7 +85,7 @@ DAG_EMPTY, DAG_FULL = 0xFFFFFFFE, 0xFFFFFFFF
 KIND_BATCHING_POINT, KIND_MESH_SEGMENT, KIND_SEGMENT_ATTRIBUTES, KIND_POINT_ATTRIBUTES = 16, 17, 18, 19
 KIND_NAMES = {1: "metadata", 2: "top-level BVH", 3: "batching-point descriptors", 4: "instance table",
               5: "mesh table", 6: "source map", 7: "DAG pool", 16: "batching point", 17: "mesh segment",
-              18: "mesh segment attributes", 19: "batching point attributes"}  # as lib/package/reader.cpp
+              18: "mesh segment attributes", 19: "batching point attributes"}  # as lib/reader/reader.cpp
 RESIDENT_KINDS = range(1, 8)
 
 (SEC_NODES, SEC_BLOCKS, SEC_MESH_ENTRIES, SEC_INSTANCE_IDS, SEC_INSTANCES, SEC_GLOBAL_IDS, SEC_MESH_SLOTS,

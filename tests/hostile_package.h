@@ -14,7 +14,7 @@
 #include "mesh/prepare.h"
 #include "package/inspect.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "package/write_package.h"
 #include "package_patch.h"
 #include "scene/import.h"

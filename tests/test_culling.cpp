@@ -31,7 +31,7 @@
 #include "mesh/prepare.h"
 #include "oracle/rays.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "package/write_package.h"
 #include "scene/import.h"
 

@@ -17,7 +17,7 @@
 #include "formats/top_level.h"
 #include "gltf_builder.h"
 #include "package_patch.h"
-#include "package/chunk_io.h"
+#include "reader/chunk_io.h"
 #include "package/inspect.h"
 #include "package/package.h"
 #include "package/write_package.h"

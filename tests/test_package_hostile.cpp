@@ -1,4 +1,4 @@
-// The package trust boundary (lib/package/check_chunks.h, formats/SPEC.md §4 "Structural checks at
+// The package trust boundary (lib/reader/check_chunks.h, formats/SPEC.md §4 "Structural checks at
 // decode"): packages converted from a real sample, then one field patched with every checksum
 // re-sealed, so only the structural checks can catch it. Each must be rejected by the in-core tracer
 // (what rtpack-trace loads), by rtpack-inspect and by --verify with exit 3 and a message naming the chunk

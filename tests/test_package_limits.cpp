@@ -15,7 +15,7 @@
 #include "formats/chunk.h"
 #include "formats/ray_file.h"
 #include "hostile_package.h"
-#include "package/attribute_lookup.h"
+#include "reader/attribute_lookup.h"
 
 namespace rtp::test {
 namespace {

@@ -13,9 +13,9 @@
 #include "oracle/compare.h"
 #include "oracle/embree_oracle.h"
 #include "oracle/rays.h"
-#include "package/chunk_io.h"
+#include "reader/chunk_io.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "package/write_package.h"
 #include "scene/import.h"
 

@@ -62,7 +62,7 @@
 #include "formats/chunk.h"
 #include "mesh/prepare.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "package/write_package.h"
 #include "scene/import.h"
 #include "voxel/point_voxels.h"

@@ -15,7 +15,7 @@
 #include "core/error.h"
 #include "formats/chunk.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "voxel/point_voxels.h"
 #include "voxel/voxel.h"
 

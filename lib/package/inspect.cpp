@@ -11,8 +11,8 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
-#include "package/check_chunks.h"
-#include "package/chunk_io.h"
+#include "reader/check_chunks.h"
+#include "reader/chunk_io.h"
 
 namespace rtp {
 namespace {

@@ -4,8 +4,8 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "package/check_chunks.h"
-#include "package/chunk_io.h"
+#include "reader/check_chunks.h"
+#include "reader/chunk_io.h"
 #include "package/inspect.h"
 
 namespace rtp::inspect_detail {

@@ -6,7 +6,7 @@
 #include <set>
 #include <string>
 
-#include "package/check_chunks.h"
+#include "reader/check_chunks.h"
 #include "package/inspect.h"
 
 namespace rtp::inspect_detail {

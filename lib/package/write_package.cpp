@@ -13,7 +13,7 @@
 #include <memory>
 
 #include "formats/dag.h"
-#include "package/chunk_io.h"
+#include "reader/chunk_io.h"
 #include "package/package.h"
 #include "package/write_attributes.h"
 

@@ -8,6 +8,7 @@
 
 #include "core/math.h"
 #include "formats/dag.h"
+#include "trace/dag_trace.h"  // DagView, DagHit, check_dag(s), dag_first_entry
 
 namespace rtp::voxel {
 
@@ -107,39 +108,9 @@ class DagPool {
   std::unordered_map<uint64_t, uint32_t> leaf_index_;
 };
 
-// A read-only view of a pool (from a package chunk or a DagPool).
-struct DagView {
-  const uint32_t* words = nullptr;
-  uint64_t word_count = 0;
-  const uint64_t* leaves = nullptr;
-  uint64_t leaf_count = 0;
-};
-
-// Structural check of one grid's DAG: resolution, cell, every reference in range, node sizes, no
-// empty node or leaf. Returns "" when sound, else what is wrong. Cost: O(nodes reachable).
-std::string check_dag(const fmt::DagGrid& grid, const DagView& pool);
-// The same for every grid of a pool at once (nodes shared by several grids are checked once):
-// "" or "batching point N: <problem>".
-std::string check_dags(const fmt::DagGrid* grids, uint64_t count, const DagView& pool);
-// Bytes of the unique nodes and leaves reachable from the grid's root (the size of this DAG built
-// alone, before sharing with other batching points).
-uint64_t dag_reachable_bytes(const fmt::DagGrid& grid, const DagView& pool);
 // Decodes a grid's DAG into a dense grid (tests, inspection).
 Grid decode_dag(const fmt::DagGrid& grid, const DagView& pool);
 
-// Result of the ray/DAG test: culled, or a lower bound t_entry >= tnear on the entry distance of every
-// set cell the ray meets within [tnear, tfar] (so every hit of the grid's geometry has t >= t_entry).
-// The reference returns the exact smallest entry distance.
-struct DagHit {
-  bool culled = true;
-  double t_entry = 0;
-};
-// The cell growth the ray test uses for this ray (SPEC §4.5).
-double dag_ray_growth(const fmt::DagGrid& grid, const double org[3]);
-// Front-to-back DFS over the DAG with the eight child boxes tested together, clipped to
-// [tnear, tfar] (fixed stack, no allocation). Requires check_dag() to have passed.
-DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3],
-                       double tnear, double tfar);
 // Scalar reference: every set cell of a dense grid tested on its own (slow; tests only).
 DagHit grid_first_entry_reference(const Grid& dense, double growth, const double org[3], const double dir[3],
                                   double tnear, double tfar);

@@ -11,10 +11,10 @@
 
 #include "fuzz_util.h"
 #include "reseal.h"
-#include "package/attribute_lookup.h"
+#include "reader/attribute_lookup.h"
 #include "package/inspect.h"
 #include "package/package.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 
 namespace {
 

@@ -8,7 +8,7 @@
 #include <memory>
 
 #include "fuzz_util.h"
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 #include "trace/ray_file.h"
 
 namespace {

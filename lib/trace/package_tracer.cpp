@@ -1,6 +1,6 @@
 // In-core package tracing: chunk views -> per batching point SceneView; top level traversed front to
 // back in double precision (Molenaar 2019 §4.1 top-level BVH over batching points).
-#include "package/package_tracer.h"
+#include "trace/package_tracer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,9 +12,9 @@
 #include "formats/chunk.h"
 #include "formats/dag.h"
 #include "formats/top_level.h"
-#include "package/check_chunks.h"
-#include "package/chunk_io.h"
-#include "voxel/voxel.h"
+#include "reader/check_chunks.h"
+#include "reader/chunk_io.h"
+#include "trace/dag_trace.h"
 
 namespace rtp {
 

@@ -1,5 +1,5 @@
 // Chunk payloads: a header, a section table, then each section's array at a 64-byte boundary.
-#include "package/chunk_io.h"
+#include "reader/chunk_io.h"
 
 namespace rtp {
 

@@ -1,6 +1,6 @@
 // Primary rays through an image from a package's camera (glTF 2.0 §3.10: cameras look down -z of their
 // node, +y up; perspective yfov is vertical, orthographic xmag/ymag are half-extents).
-#include "package/camera.h"
+#include "reader/camera.h"
 
 #include <cmath>
 #include <cstdio>
@@ -9,7 +9,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
-#include "package/chunk_io.h"
+#include "reader/chunk_io.h"
 
 namespace rtp {
 

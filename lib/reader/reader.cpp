@@ -12,7 +12,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
-#include "package/package.h"
+#include "reader/container.h"
 
 namespace rtp {
 namespace {

@@ -1,6 +1,6 @@
 // Hit -> shading attributes: (instance -> mesh) from the instance table, (mesh, prim) -> attribute
 // entry and its triangle, barycentric interpolation, inverse-transpose to world space.
-#include "package/attribute_lookup.h"
+#include "reader/attribute_lookup.h"
 
 #include <algorithm>
 #include <array>
@@ -10,8 +10,8 @@
 #include "core/error.h"
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
-#include "package/check_chunks.h"
-#include "package/chunk_io.h"
+#include "reader/check_chunks.h"
+#include "reader/chunk_io.h"
 
 namespace rtp {
 

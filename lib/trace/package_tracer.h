@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "formats/ray_file.h"
-#include "package/package.h"
+#include "reader/container.h"
 #include "trace/trace.h"
-#include "voxel/voxel.h"
+#include "trace/dag_trace.h"
 
 namespace rtp {
 

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "formats/ray_file.h"
-#include "package/package.h"
+#include "reader/container.h"
 
 namespace rtp {
 

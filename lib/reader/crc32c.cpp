@@ -3,7 +3,7 @@
 #include <cstring>
 #include <nmmintrin.h>
 
-#include "package/package.h"
+#include "reader/container.h"
 
 namespace rtp {
 namespace {

@@ -2,7 +2,7 @@
 // (64-bit safe), BVH links acyclic (a child index is greater than its parent's; checked in one pass over
 // the nodes) and no node reached twice, boxes finite. One pass over each chunk's bytes, no allocation
 // larger than the sections themselves.
-#include "package/check_chunks.h"
+#include "reader/check_chunks.h"
 
 #include <cmath>
 #include <vector>

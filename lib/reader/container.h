@@ -1,0 +1,63 @@
+#pragma once
+// The .rtp container as the reader sees it (formats/SPEC.md §1–3): header and TOC verified on open,
+// chunks read with pread (optional O_DIRECT), CRC-32C checked and zstd-decompressed on demand. The
+// chunk *contents* are defined by the modules that produce them; this only finds and checks bytes.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/aligned.h"
+#include "formats/package.h"
+
+namespace rtp {
+
+// CRC-32C (Castagnoli), hardware-accelerated (SSE4.2) with a table fallback.
+uint32_t crc32c(const void* data, size_t size, uint32_t crc = 0);
+uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
+
+// A readable name for a chunk in messages: "batching point 12 (chunk #30)".
+std::string chunk_label(const fmt::TocEntry& e, size_t toc_index);
+const char* chunk_kind_name(uint32_t kind);
+
+class PackageReader {
+ public:
+  // Opens (never blocking: a FIFO or any other non-regular file is rejected, exit 3) and verifies the header and TOC (magic, version, sizes, CRCs, every entry inside the file
+  // and 4 KiB aligned). Throws Error(kInputInvalid) naming what is wrong; kInputIo when unreadable.
+  explicit PackageReader(const std::string& path, bool direct_io = false);
+  ~PackageReader();
+  PackageReader(const PackageReader&) = delete;
+  PackageReader& operator=(const PackageReader&) = delete;
+
+  const fmt::Header& header() const { return header_; }
+  const std::vector<fmt::TocEntry>& toc() const { return toc_; }
+  bool direct_io() const { return direct_; }  // false if O_DIRECT was asked for but unavailable
+
+  // Index of the chunk (kind, id) in toc(), or -1.
+  int64_t find(fmt::ChunkKind kind, uint64_t id) const;
+  // Reads, checks the CRC and decompresses chunk toc()[index] into a 64-byte aligned buffer.
+  // Throws naming the chunk.
+  AlignedBytes read(size_t index) const;
+  // Reads and checks the CRC only (no decompression).
+  void verify(size_t index) const;
+  // The offset of the first non-zero byte of [offset, offset + size) of the file, or kAllZero.
+  static constexpr uint64_t kAllZero = ~uint64_t(0);
+  uint64_t first_nonzero(uint64_t offset, uint64_t size) const;
+
+  // A chunk's raw_size is at most kMaxChunkRatio * stored_size + kMaxChunkSlack (formats/SPEC.md §3):
+  // checked before any memory is committed. The writer's chunks stay far below (rtpack-inspect: ratio).
+  static constexpr uint64_t kMaxChunkRatio = 1024;
+  static constexpr uint64_t kMaxChunkSlack = uint64_t(1) << 20;
+
+ private:
+  AlignedBytes read_stored(size_t index) const;
+  std::string path_;
+  void check_header_and_toc();  // the constructor's checks (it closes fd_ when they throw)
+  int fd_ = -1;
+  bool direct_ = false;
+  uint64_t file_size_ = 0;
+  fmt::Header header_{};
+  std::vector<fmt::TocEntry> toc_;
+};
+
+}  // namespace rtp

@@ -1,0 +1,219 @@
+// The public reader API (rtpack/rtpack.h) over the container (lib/reader) and the in-core package
+// tracer (lib/trace): internal errors become rtpack::Error, internal types never cross the header.
+#include "rtpack/rtpack.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+#include <new>
+
+#include "core/error.h"
+#include "formats/chunk.h"
+#include "reader/attribute_lookup.h"
+#include "reader/camera.h"
+#include "reader/chunk_io.h"
+#include "reader/container.h"
+#include "trace/package_tracer.h"
+
+#ifndef RTP_VERSION
+#define RTP_VERSION "unknown"
+#endif
+
+namespace rtpack {
+namespace {
+
+static_assert(sizeof(Ray) == sizeof(rtp::fmt::Ray) && offsetof(Ray, dir) == offsetof(rtp::fmt::Ray, dir) &&
+              offsetof(Ray, tfar) == offsetof(rtp::fmt::Ray, tfar));
+static_assert(sizeof(Hit) == sizeof(rtp::fmt::Hit) && offsetof(Hit, prim) == offsetof(rtp::fmt::Hit, prim) &&
+              offsetof(Hit, v) == offsetof(rtp::fmt::Hit, v));
+static_assert(sizeof(Shading) == sizeof(rtp::fmt::Shading) && offsetof(Shading, uv) == offsetof(rtp::fmt::Shading, uv));
+static_assert(Hit::kNone == rtp::fmt::Hit::kNone);
+
+// Runs f, turning the library's internal errors into rtpack::Error prefixed with the package path.
+template <class F>
+auto guarded(const std::string& path, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const rtp::Error& e) {
+    throw Error(int(e.code()), path + ": " + e.what());
+  } catch (const std::bad_alloc&) {
+    throw Error(int(rtp::ExitCode::kInternal), path + ": out of memory");
+  }
+}
+
+Bounds bounds_of(const float lo[3], const float hi[3]) {
+  Bounds b{};
+  std::memcpy(b.lo, lo, sizeof b.lo);
+  std::memcpy(b.hi, hi, sizeof b.hi);
+  return b;
+}
+
+}  // namespace
+
+const char* version() { return RTP_VERSION; }
+const char* format_version() {
+  static const std::string v = std::to_string(rtp::fmt::kVersionMajor) + "." + std::to_string(rtp::fmt::kVersionMinor);
+  return v.c_str();
+}
+
+struct Package::Impl {
+  std::string path;
+  std::unique_ptr<rtp::PackageReader> reader;
+  std::unique_ptr<rtp::PackageTracer> tracer;
+  Info info;
+  std::vector<BatchingPoint> points;
+  std::vector<Mesh> meshes;
+  mutable std::once_flag attributes_once;
+  mutable std::unique_ptr<rtp::AttributeLookup> attributes;
+
+  rtp::PackageTraceOptions trace_options(const TraceOptions& o) const {
+    rtp::PackageTraceOptions opt;
+    opt.cull = o.cull;
+    const rtp::Isa best = rtp::detect_isa();
+    switch (o.isa) {
+      case Isa::kBest: opt.isa = best; break;
+      case Isa::kScalar: opt.isa = rtp::Isa::kScalar; break;
+      case Isa::kAvx2: opt.isa = rtp::Isa::kAvx2; break;
+      case Isa::kAvx512: opt.isa = rtp::Isa::kAvx512; break;
+    }
+    if (int(opt.isa) > int(best))
+      throw Error(int(rtp::ExitCode::kUsage), std::string("this CPU runs up to ") + rtp::isa_name(best) + ", not " +
+                                                   rtp::isa_name(opt.isa));
+    return opt;
+  }
+
+  // Splits [0, n) over TBB workers (or runs inline for threads == 1), summing what f returns.
+  template <class F>
+  size_t parallel(size_t n, int threads, F&& f) const {
+    std::atomic<size_t> sum{0};
+    auto body = [&](const tbb::blocked_range<size_t>& r) { sum += f(r.begin(), r.size()); };
+    if (threads == 1) {
+      if (n) body(tbb::blocked_range<size_t>(0, n));
+    } else if (threads > 1) {
+      tbb::task_arena arena(threads);
+      arena.execute([&] { tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), body); });
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), body);
+    }
+    return sum.load();
+  }
+};
+
+Package::Package(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Package::~Package() = default;
+Package::Package(Package&&) noexcept = default;
+Package& Package::operator=(Package&&) noexcept = default;
+
+Package Package::open(const std::string& path) {
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  guarded(path, [&] {
+    impl->reader = std::make_unique<rtp::PackageReader>(path);
+    const rtp::PackageReader& r = *impl->reader;
+    // Every chunk read, CRC-checked and structurally checked (reader/check_chunks.h) before any ray.
+    impl->tracer = rtp::load_package_in_core(r);
+    const rtp::fmt::Header& h = r.header();
+    Info& in = impl->info;
+    in.format_major = h.version_major;
+    in.format_minor = h.version_minor;
+    in.file_bytes = h.file_size;
+    in.unique_triangles = h.unique_triangles;
+    in.instanced_triangles = h.instanced_triangles;
+    in.bvh_width = h.bvh_width;
+    in.leaf_width = h.leaf_width;
+    in.bounds = bounds_of(h.bounds_lo, h.bounds_hi);
+    in.has_normals = h.flags & rtp::fmt::kFlagNormals;
+    in.has_uvs = h.flags & rtp::fmt::kFlagUvs;
+    in.has_dags = impl->tracer->has_dags();
+    in.cameras = uint32_t(rtp::camera_count(r));
+
+    auto view = [&](rtp::fmt::ChunkKind kind, rtp::AlignedBytes& bytes) {
+      const int64_t i = r.find(kind, 0);
+      if (i < 0) rtp::fail_invalid(std::string("missing ") + rtp::chunk_kind_name(uint32_t(kind)) + " chunk");
+      bytes = r.read(size_t(i));
+      return rtp::ChunkView(bytes.data(), bytes.size(), uint32_t(kind), rtp::chunk_label(r.toc()[size_t(i)], size_t(i)));
+    };
+    rtp::AlignedBytes ib, db, mb;
+    uint64_t n = 0;
+    view(rtp::fmt::ChunkKind::kInstances, ib).get<rtp::fmt::InstanceRecord>(rtp::fmt::SectionType::kInstances, n);
+    in.instances = n;
+    const rtp::ChunkView dv = view(rtp::fmt::ChunkKind::kBatchingPoints, db);
+    const rtp::fmt::BatchingPointDesc* d = dv.get<rtp::fmt::BatchingPointDesc>(rtp::fmt::SectionType::kPointDescs, n);
+    for (uint64_t p = 0; p < n; ++p) {
+      BatchingPoint bp;
+      bp.bounds = bounds_of(d[p].lo, d[p].hi);
+      bp.unique_triangles = d[p].unique_triangles;
+      bp.instanced_triangles = d[p].instanced_triangles;
+      bp.instances = d[p].instance_count;
+      if (const int64_t c = r.find(rtp::fmt::ChunkKind::kBatchingPoint, d[p].chunk_id); c >= 0) {
+        bp.stored_bytes = r.toc()[size_t(c)].stored_size;
+        bp.raw_bytes = r.toc()[size_t(c)].raw_size;
+      }
+      impl->points.push_back(bp);
+    }
+    const rtp::ChunkView mv = view(rtp::fmt::ChunkKind::kMeshes, mb);
+    const rtp::fmt::MeshInfo* m = mv.get<rtp::fmt::MeshInfo>(rtp::fmt::SectionType::kMeshTable, n);
+    for (uint64_t i = 0; i < n; ++i) impl->meshes.push_back({m[i].triangles, m[i].segment});
+    return 0;
+  });
+  return Package(std::move(impl));
+}
+
+const Info& Package::info() const { return impl_->info; }
+const std::vector<BatchingPoint>& Package::batching_points() const { return impl_->points; }
+const std::vector<Mesh>& Package::meshes() const { return impl_->meshes; }
+
+size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options) const {
+  const rtp::PackageTraceOptions opt = impl_->trace_options(options);
+  return guarded(impl_->path, [&] {
+    return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
+      auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits + first);
+      impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), h, n, opt);
+      size_t k = 0;
+      for (size_t i = 0; i < n; ++i) k += h[i].instance != rtp::fmt::Hit::kNone;
+      return k;
+    });
+  });
+}
+
+size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options) const {
+  const rtp::PackageTraceOptions opt = impl_->trace_options(options);
+  return guarded(impl_->path, [&] {
+    return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
+      impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), occluded + first, n, opt);
+      size_t k = 0;
+      for (size_t i = 0; i < n; ++i) k += occluded[first + i];
+      return k;
+    });
+  });
+}
+
+void Package::shade(const Hit* hits, Shading* out, size_t count) const {
+  guarded(impl_->path, [&] {
+    std::call_once(impl_->attributes_once, [&] { impl_->attributes = std::make_unique<rtp::AttributeLookup>(*impl_->reader); });
+    for (size_t i = 0; i < count; ++i) {
+      const rtp::fmt::Shading s = impl_->attributes->shade(reinterpret_cast<const rtp::fmt::Hit&>(hits[i]));
+      std::memcpy(&out[i], &s, sizeof s);
+    }
+    return 0;
+  });
+}
+
+std::vector<Ray> Package::camera_rays(int width, int height, int camera) const {
+  if (width <= 0 || height <= 0 || int64_t(width) * height > (int64_t(1) << 28))
+    throw Error(int(rtp::ExitCode::kUsage), "camera_rays: " + std::to_string(width) + "x" + std::to_string(height) +
+                                                " is not a size (1 to 2^28 pixels)");
+  return guarded(impl_->path, [&] {
+    const rtp::CameraRays cr = rtp::camera_rays(*impl_->reader, width, height, camera);
+    std::vector<Ray> out(cr.rays.size());
+    if (!out.empty()) std::memcpy(out.data(), cr.rays.data(), out.size() * sizeof(Ray));
+    return out;
+  });
+}
+
+}  // namespace rtpack

@@ -1,0 +1,142 @@
+#pragma once
+// rtpack reader library: the public API (installed as <rtpack/rtpack.h>, linked as rtpack::reader).
+//
+//   find_package(rtpack CONFIG REQUIRED)
+//   target_link_libraries(app PRIVATE rtpack::reader)
+//
+//   rtpack::Package pkg = rtpack::Package::open("scene.rtp");   // checks header, TOC, every chunk
+//   std::vector<rtpack::Hit> hits(rays.size());
+//   pkg.trace(rays.data(), hits.data(), rays.size());           // closest hits, all cores
+//
+// Everything here is plain data and one handle; the package's own layout (formats/SPEC.md) stays inside
+// the library. A hostile or damaged file never crashes it: every failure is an rtpack::Error whose
+// message names the file, the chunk and what is wrong, and whose code() is the tools' exit code.
+// Thread-safety: a Package is immutable after open(); trace(), occluded() and shade() may be called from
+// any number of threads at once.
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#if defined(RTPACK_BUILDING_LIBRARY)
+#define RTPACK_API __attribute__((visibility("default")))
+#else
+#define RTPACK_API
+#endif
+
+namespace rtpack {
+
+// The library's version ("0.1.0") and the package format versions it reads ("2.0").
+RTPACK_API const char* version();
+RTPACK_API const char* format_version();
+
+// 32 bytes, the layout of a ray file (formats/ray_file.h): origin, tnear, direction, tfar.
+// A ray with NaN/Inf, tnear > tfar or tnear = +inf is invalid and returned as a miss.
+struct Ray {
+  float org[3];
+  float tnear;
+  float dir[3];
+  float tfar;
+};
+// 20 bytes, the layout of a hit file: t (+inf on a miss), the scene instance, the triangle within the
+// instance's mesh, barycentrics (hit point = (1-u-v)*v0 + u*v1 + v*v2). A miss has instance = prim = kNone.
+struct Hit {
+  static constexpr uint32_t kNone = 0xFFFFFFFFu;
+  float t;
+  uint32_t instance;
+  uint32_t prim;
+  float u;
+  float v;
+};
+// Interpolated world-space normal and TEXCOORD_0 of a hit (zeros for a miss or a mesh without them).
+struct Shading {
+  float normal[3];
+  float uv[2];
+};
+static_assert(sizeof(Ray) == 32 && sizeof(Hit) == 20 && sizeof(Shading) == 20);
+
+struct Bounds {
+  float lo[3];
+  float hi[3];
+};
+
+// What the header says about the whole package.
+struct Info {
+  uint32_t format_major = 0, format_minor = 0;
+  uint64_t file_bytes = 0;
+  uint64_t unique_triangles = 0;     // stored triangles
+  uint64_t instanced_triangles = 0;  // triangles as the scene shows them (instances expanded)
+  uint64_t instances = 0;
+  uint32_t bvh_width = 0, leaf_width = 0;
+  Bounds bounds{};
+  bool has_normals = false, has_uvs = false, has_dags = false;
+  uint32_t cameras = 0;  // glTF cameras kept in the metadata
+};
+
+// One batching point (a cluster of objects traced as one unit; Molenaar 2019 §3.1).
+struct BatchingPoint {
+  Bounds bounds{};
+  uint64_t unique_triangles = 0;
+  uint64_t instanced_triangles = 0;
+  uint32_t instances = 0;
+  uint64_t stored_bytes = 0;  // its chunk on disk (compressed)
+  uint64_t raw_bytes = 0;     // its chunk in memory
+};
+
+// One instanced mesh (stored once, referenced by instances).
+struct Mesh {
+  uint64_t triangles = 0;
+  uint32_t segment = 0;  // the mesh-segment chunk holding it
+};
+
+enum class Isa { kBest, kScalar, kAvx2, kAvx512 };
+
+struct TraceOptions {
+  Isa isa = Isa::kBest;  // kBest: the widest this CPU runs; asking for more than it runs throws
+  bool cull = true;      // test batching points' culling DAGs first (same hits either way)
+  int threads = 0;       // 0: all cores (TBB); 1: the calling thread only
+};
+
+class RTPACK_API Error : public std::runtime_error {
+ public:
+  Error(int code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  // 1 usage, 2 cannot read, 3 invalid package, 5 internal (the tools' exit codes).
+  int code() const { return code_; }
+
+ private:
+  int code_;
+};
+
+class RTPACK_API Package {
+ public:
+  // Opens and checks the package (header, TOC, every chunk's CRC and structure) and loads it in core.
+  // Throws rtpack::Error naming the file and the bad chunk.
+  static Package open(const std::string& path);
+  ~Package();
+  Package(Package&&) noexcept;
+  Package& operator=(Package&&) noexcept;
+
+  const Info& info() const;
+  const std::vector<BatchingPoint>& batching_points() const;
+  const std::vector<Mesh>& meshes() const;
+
+  // Closest hit of each ray (hits[i] for rays[i]). Returns the number of rays that hit.
+  size_t trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options = {}) const;
+  // Any hit within [tnear, tfar]: occluded[i] = 1 or 0. Returns the number occluded.
+  size_t occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options = {}) const;
+  // Interpolated normal and uv of each hit, from the package's attribute chunks (rtpack-convert
+  // --attributes normal,uv); zeros where the package has none. The chunks load on the first call.
+  void shade(const Hit* hits, Shading* out, size_t count) const;
+  // Primary rays of the package's glTF camera `camera` (-1: the first, or an automatic camera framing
+  // the bounds when there is none), width x height, row-major, top row first.
+  std::vector<Ray> camera_rays(int width, int height, int camera = -1) const;
+
+ private:
+  struct Impl;
+  explicit Package(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rtpack

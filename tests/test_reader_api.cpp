@@ -1,0 +1,213 @@
+// The public reader API (lib/rtpack/rtpack.h, installed as rtpack::reader) against the internals it
+// wraps, ray by ray: same hits and occlusion as the package tracer for every thread count, same
+// attributes as AttributeLookup, same camera rays; errors carry the tools' codes and name the file.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "gltf_builder.h"
+#include "reader/attribute_lookup.h"
+#include "reader/camera.h"
+#include "reader/container.h"
+#include "rtpack/rtpack.h"
+#include "tool_run.h"
+#include "trace/package_tracer.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ReaderApi : public ::testing::Test {
+ protected:
+  static fs::path dir, gallery, helmet;
+  static void SetUpTestSuite() {
+    dir = temp_dir("ReaderApi");
+    gallery = dir / "gallery.rtp";
+    helmet = dir / "helmet.rtp";
+    ToolResult r = run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run_tool("rtpack-convert", {(source_dir() / "samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf").string(), "-q",
+                                    "--attributes", "normal,uv", "-o", helmet.string()}, dir, {}, 120);
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir); }
+
+  // Rays from a box around the bounds in random directions, and one invalid (NaN) ray.
+  static std::vector<rtpack::Ray> random_rays(const rtpack::Bounds& b, size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0, 1), s(-1, 1);
+    std::vector<rtpack::Ray> rays(n);
+    for (rtpack::Ray& r : rays) {
+      float len = 0;
+      for (int k = 0; k < 3; ++k) {
+        const float ext = b.hi[k] - b.lo[k];
+        r.org[k] = b.lo[k] - 0.2f * ext + 1.4f * ext * u(rng);
+        r.dir[k] = s(rng);
+        len += r.dir[k] * r.dir[k];
+      }
+      for (float& d : r.dir) d /= std::sqrt(len);
+      r.tnear = 0;
+      r.tfar = INFINITY;
+    }
+    rays[n / 2].dir[1] = NAN;
+    return rays;
+  }
+};
+fs::path ReaderApi::dir, ReaderApi::gallery, ReaderApi::helmet;
+
+TEST_F(ReaderApi, InfoMatchesTheHeaderAndTables) {
+  const rtpack::Package pkg = rtpack::Package::open(gallery.string());
+  const PackageReader reader(gallery.string());
+  const fmt::Header& h = reader.header();
+  const rtpack::Info& in = pkg.info();
+  EXPECT_EQ(in.format_major, fmt::kVersionMajor);
+  EXPECT_EQ(in.file_bytes, fs::file_size(gallery));
+  EXPECT_EQ(in.unique_triangles, h.unique_triangles);
+  EXPECT_EQ(in.instanced_triangles, h.instanced_triangles);
+  EXPECT_EQ(in.instances, 12u);  // gallery.glb: 12 instances, 2 cameras
+  EXPECT_EQ(in.cameras, 2u);
+  EXPECT_EQ(in.bvh_width, h.bvh_width);
+  EXPECT_EQ(std::memcmp(in.bounds.lo, h.bounds_lo, 12), 0);
+  const auto tracer = load_package_in_core(reader);
+  ASSERT_EQ(pkg.batching_points().size(), tracer->batching_points());
+  EXPECT_EQ(in.has_dags, tracer->has_dags());
+  uint64_t unique = 0, instanced = 0, instances = 0;
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (const rtpack::BatchingPoint& p : pkg.batching_points()) {
+    unique += p.unique_triangles;
+    instanced += p.instanced_triangles;
+    instances += p.instances;
+    EXPECT_GT(p.stored_bytes, 0u);
+    EXPECT_GE(p.raw_bytes, p.stored_bytes / 2);
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], p.bounds.lo[k]);
+      hi[k] = std::max(hi[k], p.bounds.hi[k]);
+    }
+  }
+  // The header's bounds are the exact instanced bounds; the points' boxes (transformed mesh boxes) hold them.
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_LE(lo[k], in.bounds.lo[k]) << k;
+    EXPECT_GE(hi[k], in.bounds.hi[k]) << k;
+  }
+  EXPECT_EQ(instanced, h.instanced_triangles);
+  EXPECT_EQ(instances, in.instances);
+  EXPECT_LE(unique, h.unique_triangles);
+  uint64_t mesh_tris = 0;
+  for (const rtpack::Mesh& m : pkg.meshes()) mesh_tris += m.triangles;
+  EXPECT_EQ(unique + mesh_tris, h.unique_triangles);
+  EXPECT_STREQ(rtpack::version(), RTP_VERSION_FOR_TESTS);
+}
+
+TEST_F(ReaderApi, HitsEqualThePackageTracerRayByRayForEveryThreadCount) {
+  for (const fs::path& p : {gallery, helmet}) {
+    const rtpack::Package pkg = rtpack::Package::open(p.string());
+    const PackageReader reader(p.string());
+    const auto tracer = load_package_in_core(reader);
+    std::vector<rtpack::Ray> rays = random_rays(pkg.info().bounds, 5000, 7);
+    const std::vector<rtpack::Ray> cam = pkg.camera_rays(64, 48);
+    rays.insert(rays.end(), cam.begin(), cam.end());
+    std::vector<fmt::Hit> want(rays.size());
+    PackageTraceOptions opt;
+    opt.isa = detect_isa();
+    tracer->closest(reinterpret_cast<const fmt::Ray*>(rays.data()), want.data(), rays.size(), opt);
+    size_t want_hits = 0;
+    for (const fmt::Hit& h : want) want_hits += h.instance != fmt::Hit::kNone;
+    ASSERT_GT(want_hits, rays.size() / 50) << p;  // the gallery is sparse: 4 % of these rays hit
+    EXPECT_EQ(want[2500].instance, fmt::Hit::kNone);  // the NaN ray
+    std::vector<uint8_t> want_occ(rays.size());
+    tracer->any(reinterpret_cast<const fmt::Ray*>(rays.data()), want_occ.data(), rays.size(), opt);
+    for (const int threads : {1, 2, 0}) {
+      for (const bool cull : {true, false}) {
+        rtpack::TraceOptions o;
+        o.threads = threads;
+        o.cull = cull;
+        std::vector<rtpack::Hit> hits(rays.size());
+        EXPECT_EQ(pkg.trace(rays.data(), hits.data(), rays.size(), o), want_hits);
+        for (size_t i = 0; i < rays.size(); ++i)
+          ASSERT_EQ(std::memcmp(&hits[i], &want[i], sizeof(fmt::Hit)), 0) << p << " ray " << i << " threads " << threads;
+        std::vector<uint8_t> occ(rays.size(), 7);
+        size_t n_occ = pkg.occluded(rays.data(), occ.data(), rays.size(), o);
+        EXPECT_EQ(occ, want_occ) << p << " threads " << threads;
+        size_t expect_occ = 0;
+        for (uint8_t v : want_occ) expect_occ += v;
+        EXPECT_EQ(n_occ, expect_occ);
+      }
+    }
+  }
+}
+
+TEST_F(ReaderApi, ShadingAndCameraRaysEqualTheInternals) {
+  const rtpack::Package pkg = rtpack::Package::open(helmet.string());
+  EXPECT_TRUE(pkg.info().has_normals);
+  EXPECT_TRUE(pkg.info().has_uvs);
+  const PackageReader reader(helmet.string());
+  const CameraRays cr = camera_rays(reader, 40, 30);
+  const std::vector<rtpack::Ray> rays = pkg.camera_rays(40, 30);
+  ASSERT_EQ(rays.size(), cr.rays.size());
+  ASSERT_EQ(std::memcmp(rays.data(), cr.rays.data(), rays.size() * sizeof(rtpack::Ray)), 0);
+  std::vector<rtpack::Hit> hits(rays.size());
+  ASSERT_GT(pkg.trace(rays.data(), hits.data(), rays.size()), 100u);
+  std::vector<rtpack::Shading> sh(hits.size());
+  pkg.shade(hits.data(), sh.data(), hits.size());
+  const AttributeLookup lookup(reader);
+  size_t nonzero = 0;
+  for (size_t i = 0; i < hits.size(); ++i) {
+    const fmt::Shading want = lookup.shade(reinterpret_cast<const fmt::Hit&>(hits[i]));
+    ASSERT_EQ(std::memcmp(&sh[i], &want, sizeof want), 0) << i;
+    nonzero += sh[i].normal[0] != 0 || sh[i].normal[1] != 0 || sh[i].normal[2] != 0;
+  }
+  EXPECT_GT(nonzero, 100u);
+}
+
+TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
+  auto code_of = [](auto&& f) {
+    try {
+      f();
+    } catch (const rtpack::Error& e) {
+      return std::make_pair(e.code(), std::string(e.what()));
+    }
+    return std::make_pair(0, std::string());
+  };
+  const std::string missing = (dir / "missing.rtp").string();
+  auto [c1, m1] = code_of([&] { rtpack::Package::open(missing); });
+  EXPECT_EQ(c1, 2);
+  EXPECT_NE(m1.find(missing), std::string::npos) << m1;
+  // Truncated: the header's file size disagrees.
+  const std::string bytes = slurp_file(gallery);
+  const fs::path cut = dir / "cut.rtp";
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  auto [c2, m2] = code_of([&] { rtpack::Package::open(cut.string()); });
+  EXPECT_EQ(c2, 3);
+  EXPECT_NE(m2.find(cut.string()), std::string::npos) << m2;
+  // A flipped byte inside a chunk: its CRC names it.
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] = char(flipped[flipped.size() / 2] ^ 0x40);
+  const fs::path fl = dir / "flipped.rtp";
+  std::ofstream(fl, std::ios::binary) << flipped;
+  auto [c3, m3] = code_of([&] { rtpack::Package::open(fl.string()); });
+  EXPECT_EQ(c3, 3) << m3;
+  EXPECT_NE(m3.find("chunk"), std::string::npos) << m3;
+
+  const rtpack::Package pkg = rtpack::Package::open(gallery.string());
+  auto [c4, m4] = code_of([&] { pkg.camera_rays(0, 10); });
+  EXPECT_EQ(c4, 1);
+  auto [c5, m5] = code_of([&] { pkg.camera_rays(8, 8, 5); });
+  EXPECT_EQ(c5, 1);
+  EXPECT_NE(m5.find("camera 5: the package has 2 cameras"), std::string::npos) << m5;
+  if (detect_isa() != Isa::kAvx512) {
+    rtpack::TraceOptions o;
+    o.isa = rtpack::Isa::kAvx512;
+    rtpack::Ray r{{0, 0, 0}, 0, {0, 0, 1}, 1};
+    rtpack::Hit h{};
+    auto [c6, m6] = code_of([&] { pkg.trace(&r, &h, 1, o); });
+    EXPECT_EQ(c6, 1);
+    EXPECT_NE(m6.find("this CPU runs up to"), std::string::npos) << m6;
+  }
+}
+
+}  // namespace
+}  // namespace rtp::test
