@@ -532,7 +532,7 @@ class Package:
         top = self.resident(KIND_TOP_LEVEL_BVH).get(SEC_TOP_NODES)
         meta = self.metadata()
         return {
-            "file": self.path, "file_bytes": self.file_size, "version": self.version,
+            "file": self.path, "package_bytes": self.file_size, "version": self.version,
             "attributes": [n for bit, n in ((FLAG_NORMALS, "normal"), (FLAG_UVS, "uv")) if self.flags & bit],
             "bvh_width": self.bvh_width, "leaf_width": self.leaf_width,
             "unique_triangles": int(h["unique_triangles"]), "instanced_triangles": int(h["instanced_triangles"]),
@@ -573,7 +573,7 @@ def main(argv=None):
         print(json.dumps(s, indent=2))
         return 0
     b = s["bounds"]
-    print(f"package       {s['file']}: {s['file_bytes']:,} bytes, version {s['version']}, {s['toc_entries']} chunks")
+    print(f"package       {s['file']}: {s['package_bytes']:,} bytes, version {s['version']}, {s['toc_entries']} chunks")
     print(f"  widths      W = {s['bvh_width']}, B = {s['leaf_width']}; attributes: "
           f"{', '.join(s['attributes']) or 'none'}")
     print(f"  triangles   {s['unique_triangles']:,} unique, {s['instanced_triangles']:,} instanced; {s['meshes']} meshes "

@@ -120,7 +120,7 @@ TEST_F(Inspect, VerifyPassesAndJsonCountsMatchTheSceneForEveryWidth) {
       EXPECT_EQ(j["mesh_segments"]["count"], p.plan.segments.size());
       EXPECT_EQ(j["chunks"].size(), p.plan.points.size() + p.plan.segments.size() + 7);  // 7 resident (2.0: DAG pool)
       EXPECT_EQ(j["dag"]["grids"], p.plan.points.size());
-      EXPECT_EQ(j["file_bytes"], fs::file_size(p.path));
+      EXPECT_EQ(j["package_bytes"], fs::file_size(p.path));
       EXPECT_EQ(j["bvh"]["batching-point pieces"]["bvhs"], p.plan.pieces.size());
       EXPECT_EQ(j["bvh"]["instance BVHs"]["bvhs"], p.plan.points.size());
     }

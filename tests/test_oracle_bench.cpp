@@ -50,7 +50,7 @@ TEST_F(OracleBench, ExitCodes) {
 
 TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
   const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 1000 --reps 1 --threads 1 "
-                    "--kinds primary,shadow --json --build-stats");
+                    "--kinds primary,shadow --json --build-stats --all");
   ASSERT_EQ(r.code, 0) << r.out;
   const json j = json::parse(r.out);
   ASSERT_TRUE(j.is_array());
@@ -91,6 +91,29 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
   EXPECT_EQ(widths, (std::set<int>{4, 8, 16}));
   EXPECT_EQ(builds, 3);
   EXPECT_EQ(sah, 6);  // W = 4, 8, 16 x collapse, split
+}
+
+// The default run is the quick one (W=8, octant order, every kind once per thread count); --all is the sweep
+// (above). The table has a header and one row per record, each labelled as an in-memory B/tri.
+TEST_F(OracleBench, DefaultsAreTheQuickRun) {
+  const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const json j = json::parse(r.out);
+  std::set<std::string> kinds;
+  for (const json& rec : j) {
+    ASSERT_EQ(rec["type"], "trace");  // no --build-stats: trace records only
+    EXPECT_EQ(rec["width"], 8);
+    EXPECT_EQ(rec["order"], "octant-stack");
+    EXPECT_EQ(rec["threads"], 1);
+    kinds.insert(rec["kind"].get<std::string>());
+  }
+  EXPECT_EQ(j.size(), 4u);
+  EXPECT_EQ(kinds, (std::set<std::string>{"primary", "random", "bounce", "shadow"}));
+  const ToolRun t = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --kinds random");
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("mem B/tri"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("\nrandom   closest   8 octant-stack   1 "), std::string::npos) << t.out;
+  EXPECT_EQ(run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --convert --all").code, 1);
 }
 
 // --convert: the tool's stdout and stderr, each into a file of `dir`; `env` is prefixed to the command.
@@ -180,7 +203,7 @@ TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_EQ(slurp(kept), slurp(tool_out)) << "rtpack-bench --convert and rtpack-convert wrote different packages";
   const json tool = json::parse(c.out);
-  EXPECT_EQ(tool["output_bytes"].get<uint64_t>(), package_bytes);  // the whole file, TOC included
+  EXPECT_EQ(tool["package_bytes"].get<uint64_t>(), package_bytes);  // the whole file, TOC included
   EXPECT_EQ(tool["chunks"], r["chunks"]);
   EXPECT_EQ(tool["unique_triangles"], r["unique_triangles"]);
   EXPECT_EQ(tool["instanced_triangles"], r["instanced_triangles"]);

@@ -65,7 +65,7 @@ TEST_F(ReaderApi, InfoMatchesTheHeaderAndTables) {
   const fmt::Header& h = reader.header();
   const rtpack::Info& in = pkg.info();
   EXPECT_EQ(in.format_major, fmt::kVersionMajor);
-  EXPECT_EQ(in.file_bytes, fs::file_size(gallery));
+  EXPECT_EQ(in.package_bytes, fs::file_size(gallery));
   EXPECT_EQ(in.unique_triangles, h.unique_triangles);
   EXPECT_EQ(in.instanced_triangles, h.instanced_triangles);
   EXPECT_EQ(in.instances, 12u);  // gallery.glb: 12 instances, 2 cameras

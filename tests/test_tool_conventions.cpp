@@ -100,7 +100,7 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   EXPECT_EQ(j["input_files"]["images_not_read"].get<int>(), 15);
   EXPECT_EQ(j["input_files"]["image_file_bytes_not_read"].get<uint64_t>(), 0u);
   EXPECT_EQ(j["instances"].get<uint64_t>(), 6u);
-  EXPECT_DOUBLE_EQ(j["bytes_per_instance"].get<double>(), double(j["output_bytes"].get<uint64_t>()) / 6.0);
+  EXPECT_DOUBLE_EQ(j["bytes_per_instance"].get<double>(), double(j["package_bytes"].get<uint64_t>()) / 6.0);
 
   // A .gltf with an external buffer, an image file that exists and one that does not: the buffer is read,
   // the images are counted (the present one by its size); the summary says what was read and what not.
@@ -164,7 +164,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
     const std::vector<nlohmann::json> objects = j.is_array() ? std::vector<nlohmann::json>(j.begin(), j.end()) : std::vector{j};
     ASSERT_FALSE(objects.empty()) << r.tool;
     for (const auto& o : objects) {
-      EXPECT_EQ(o.value("schema_version", 0), 1) << r.tool << ": " << o.dump().substr(0, 200);
+      EXPECT_EQ(o.value("schema_version", 0), 2) << r.tool << ": " << o.dump().substr(0, 200);
       EXPECT_EQ(o.value("tool_version", "").rfind(r.tool + " ", 0), 0u) << r.tool;
     }
   }
@@ -175,7 +175,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
   const ToolResult e = run_tool("rtpack-convert", {bad, "--json", "-o", (dir / "bad.rtp").string()}, dir);
   EXPECT_EQ(e.code, 3);
   const auto ej = nlohmann::json::parse(e.out);
-  EXPECT_EQ(ej["schema_version"], 1);
+  EXPECT_EQ(ej["schema_version"], 2);
   EXPECT_EQ(ej["error"]["code"], 3);
   EXPECT_EQ(ej["error"]["input"], bad);
   EXPECT_EQ(ej["error"]["pointer"], "/nodes/0/mesh");
@@ -188,7 +188,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
     const ToolResult f = run_tool(tool, args, dir);
     EXPECT_EQ(f.code, 3) << tool << ": " << f.err;
     const auto fj = nlohmann::json::parse(f.out);
-    EXPECT_EQ(fj["schema_version"], 1) << tool;
+    EXPECT_EQ(fj["schema_version"], 2) << tool;
     EXPECT_EQ(fj["error"]["code"], 3) << tool;
     EXPECT_TRUE(fj["error"]["pointer"].is_null()) << tool;
     EXPECT_NE(fj["error"]["message"].get<std::string>().find("truncated"), std::string::npos) << tool << ": " << f.out;

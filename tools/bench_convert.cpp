@@ -36,6 +36,7 @@
 #include "core/input_file.h"
 #include "core/utf8.h"
 #include "core/progress.h"
+#include "package/convert.h"
 #include "mesh/prepare.h"
 #include "oracle/embree_oracle.h"
 #include "package/package.h"
@@ -47,10 +48,8 @@ namespace rtp::bench {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
@@ -101,62 +100,37 @@ struct ConvertRun {
   std::vector<std::string> warnings;
 };
 
-ConvertRun convert_once(const ConvertBenchConfig& cfg, int leaf_width, const std::string& output, Progress& progress,
+ConvertRun convert_once(const ConvertBenchConfig& cfg, const std::string& output, Progress& progress,
                         const std::string& label, std::optional<Scene>* keep) {
-  ConvertRun r;
-  const auto t0 = Clock::now();
-  progress.stage(label + "import");
-  ImportOptions opt;  // rtpack-convert: only --scene (-1 by default) and --allow-path are set
-  opt.allowed_dirs = cfg.allow_paths;
-  Scene scene = import_gltf(cfg.scene_path, opt);
-  const auto t1 = Clock::now();
-  progress.stage(label + "prepare");
-  PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision
-  const double weld = -1, subdivide_to = 0;
-  const int subdivide = 0;
-  prep.clean.weld_eps = weld;
-  prep.subdivide_levels = subdivide;
-  prep.subdivide_to = subdivide_to;
-  (void)prepare_scene(scene, prep);
-  const auto t2 = Clock::now();
-  progress.stage(label + "batching points");
-  ClusterOptions co;
-  co.chunk_target = cfg.chunk_target;
-  co.chunk_by = ChunkBy::kInstanced;
-  const Plan plan = plan_batching_points(scene, co);
-  const auto t3 = Clock::now();
-  progress.stage(label + "chunks");
-  ConvertOptions cv;
-  cv.width = cfg.bvh_width;
-  cv.leaf_width = leaf_width;
-  cv.bvh.method = BuildMethod::kCollapse;
-  cv.zstd_level = cfg.zstd_level;
-  cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
-  // The metadata rtpack-convert writes (same keys, types and values), so the bytes are the same.
-  const std::string build = "collapse", chunk_by = "instanced";
-  cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
-                 {"source", utf8_display(fs::path(cfg.scene_path).filename().string())},
-                 {"options",
-                  {{"bvh_width", cfg.bvh_width}, {"leaf_width", leaf_width}, {"bvh_build", build},
-                   {"chunk_target", cfg.chunk_target}, {"chunk_by", chunk_by}, {"zstd_level", cfg.zstd_level},
-                   {"subdivide", subdivide}, {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
-                   {"attributes", json::array()},  // rtpack-convert --attributes: none by default
-                   {"dag", true}, {"dag_resolution", uint32_t(0)}}}};  // culling DAGs on, resolution per point
-  r.report = write_package(scene, plan, output, cv);
-  const auto t4 = Clock::now();
+  // rtpack-convert's own pipeline (package/convert.h) with its defaults and the options this bench
+  // exposes: the same call, so the same bytes.
+  ConvertSettings cs;
+  cs.input = cfg.scene_path;
+  cs.output = output;
+  cs.allow_paths = cfg.allow_paths;
+  cs.width = cfg.bvh_width;
+  cs.chunk_target = cfg.chunk_target;
+  cs.zstd_level = cfg.zstd_level;
+  ConvertHooks hooks;
+  hooks.stage = [&](const std::string& name, bool counts) { progress.stage(label + name, counts); };
+  hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
+  ConvertOutcome done = convert_scene(cs, hooks);
   progress.finish();
-  r.import_s = seconds(t0, t1);
-  r.prepare_s = seconds(t1, t2);
-  r.plan_s = seconds(t2, t3);
-  r.chunks_s = seconds(t3, t4);
+  ConvertRun r;
+  r.import_s = done.import_cost.seconds;
+  r.prepare_s = done.prepare_cost.seconds;
+  r.plan_s = done.plan_cost.seconds;
+  r.chunks_s = done.chunks_cost.seconds;
+  r.report = done.report;
+  const Scene& scene = done.scene;
   r.unique = scene.unique_triangles();
   r.instanced = scene.instanced_triangles();
   r.instances = scene.instances.size();
-  r.chunk_target = plan.chunk_target;
-  r.points = plan.points.size();
-  r.segments = plan.segments.size();
+  r.chunk_target = done.plan.chunk_target;
+  r.points = done.plan.points.size();
+  r.segments = done.plan.segments.size();
   r.warnings = scene.warnings;
-  if (keep) keep->emplace(std::move(scene));
+  if (keep) keep->emplace(std::move(done.scene));
   return r;
 }
 
@@ -201,7 +175,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
       const std::string label =
           r == 0 ? "convert warm-up: " : "convert " + std::to_string(r) + "/" + std::to_string(cfg.reps) + ": ";
       prepared.reset();
-      ConvertRun run = convert_once(cfg, leaf_width, output, progress, label, r == cfg.reps ? &prepared : nullptr);
+      ConvertRun run = convert_once(cfg, output, progress, label, r == cfg.reps ? &prepared : nullptr);
       if (r == 0) warnings = run.warnings;
       if (r > 0 && (!best || run.total() < best->total())) best = std::move(run);
     }
@@ -230,7 +204,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   json sections = json::object();
   for (const auto& [kind, s] : c.report.by_kind) {
     sections_stored += s.stored;
-    sections[kind] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
+    sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
                       {"bytes_per_unique_triangle", double(s.stored) / tris}};
   }
   const uint64_t container = package_bytes - std::min(package_bytes, sections_stored);

@@ -63,7 +63,7 @@ constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers 
 struct Config {
   std::string scene_path;
   std::vector<std::string> allow_paths;  // --allow-path: further directories for external buffers
-  size_t rays = 1u << 19;
+  size_t rays = 1u << 16;  // --all: 1 << 19
   std::vector<RayKind> kinds;
   std::vector<int> widths;
   std::vector<int> threads;
@@ -73,6 +73,8 @@ struct Config {
   uint64_t seed = 1;
   bool json = false;
   bool build_stats = false;
+  size_t steps = 0, step = 0;  // timed configurations, for the progress line
+  FILE* table = stdout;        // rows are printed here as each configuration finishes
 };
 
 bool g_progress = false;
@@ -158,8 +160,19 @@ uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
   return b;
 }
 
+void print_row(FILE* o, const Record& r) {
+  const bool any = r.kind == RayKind::kShadow;
+  std::fprintf(o,
+               "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
+               " / %" PRIu64 "\n",
+               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order_name(r.order), r.threads, r.rtpack_mrays,
+               r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
+               r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped);
+  std::fflush(o);
+}
+
 template <int W>
-void run_width(const Config& cfg, const Scene& scene, const EmbreeOracle& embree, std::vector<KindData>& kinds,
+void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std::vector<KindData>& kinds,
                std::vector<Record>& records, std::vector<BuildRecord>& builds) {
   const int max_threads = *std::max_element(cfg.threads.begin(), cfg.threads.end());
   progress("building rtpack W=" + std::to_string(W) + " ...");
@@ -202,8 +215,9 @@ void run_width(const Config& cfg, const Scene& scene, const EmbreeOracle& embree
     for (TraversalOrder order : cfg.orders) {
       const TraceOptions topt{cfg.isa, order};
       for (int t : cfg.threads) {
-        progress(std::string("timing ") + ray_kind_name(k.kind) + " W=" + std::to_string(W) + " " + order_name(order) +
-                 " T=" + std::to_string(t) + " ...");
+        ++cfg.step;
+        progress("[" + std::to_string(cfg.step) + "/" + std::to_string(cfg.steps) + "] timing " + ray_kind_name(k.kind) +
+                 " W=" + std::to_string(W) + " " + order_name(order) + " T=" + std::to_string(t) + " ...");
         tbb::task_arena arena(t);
         auto rtpack_run = [&] {
           tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
@@ -254,12 +268,14 @@ void run_width(const Config& cfg, const Scene& scene, const EmbreeOracle& embree
           rec.agreement = agreement_closest(scene, k, hits);
         }
         records.push_back(rec);
+        progress_done();
+        print_row(cfg.table, rec);
       }
     }
   }
 }
 
-int run(const Config& cfg) {
+int run(Config& cfg) {
   const auto t_load = Clock::now();
   progress("loading " + cfg.scene_path + " ...");
   ImportOptions import_options;
@@ -307,6 +323,29 @@ int run(const Config& cfg) {
     kinds.push_back(std::move(k));
   }
 
+  // The header now and each row as its configuration finishes (stdout, or stderr when stdout carries JSON).
+  FILE* o = cfg.json ? stderr : stdout;
+  cfg.table = o;
+  cfg.steps = cfg.kinds.size() * cfg.widths.size() * cfg.orders.size() * cfg.threads.size();
+  const std::string cpu = rtp::bench::cpu_model();
+  progress_done();
+  std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
+               cfg.scene_path.c_str(), scene.instanced_triangles(), scene.unique_triangles(), scene.meshes.size(),
+               scene.instances.size(), load_s);
+  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n", cpu.c_str(),
+               isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
+  for (const KindData& k : kinds) {
+    if (k.info.fallback)
+      std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
+    if (k.embree_timed_failures)
+      std::fprintf(o, "note: %s: Embree's timed %s path disagrees with its own robust stream answers on %" PRIu64 " rays\n",
+                   ray_kind_name(k.kind), k.kind == RayKind::kPrimary ? "packet" : "stream", k.embree_timed_failures);
+  }
+  // B/tri: the in-memory BVH (nodes + leaf blocks, raw) per unique triangle, not the stored package.
+  std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
+               "Embree Mrays/s", "ratio", "mem B/tri", "agree / edge ties / precision ties / FAILURES / skipped");
+  std::fflush(o);
+
   std::vector<Record> records;
   std::vector<BuildRecord> builds;
   for (int w : cfg.widths) {
@@ -338,8 +377,6 @@ int run(const Config& cfg) {
 
   uint64_t failures = 0;
   for (const Record& r : records) failures += r.agreement.failures;
-  const std::string cpu = rtp::bench::cpu_model();
-
   if (cfg.json) {
     json out = json::array();
     for (const Record& r : records) {
@@ -403,34 +440,9 @@ int run(const Config& cfg) {
     std::cout << out.dump(1) << "\n";
   }
 
-  // Human-readable report: stdout, or stderr when stdout carries JSON.
-  FILE* o = cfg.json ? stderr : stdout;
-  std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
-               cfg.scene_path.c_str(), scene.instanced_triangles(), scene.unique_triangles(), scene.meshes.size(),
-               scene.instances.size(), load_s);
-  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n", cpu.c_str(),
-               isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
-  for (const KindData& k : kinds) {
-    if (k.info.fallback)
-      std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
-    if (k.embree_timed_failures)
-      std::fprintf(o, "note: %s: Embree's timed %s path disagrees with its own robust stream answers on %" PRIu64 " rays\n",
-                   ray_kind_name(k.kind), k.kind == RayKind::kPrimary ? "packet" : "stream", k.embree_timed_failures);
-  }
-  std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
-               "Embree Mrays/s", "ratio", "B/tri", "agree / edge ties / precision ties / FAILURES / skipped");
-  for (const Record& r : records) {
-    const bool any = r.kind == RayKind::kShadow;
-    std::fprintf(o,
-                 "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
-                 " / %" PRIu64 "\n",
-                 ray_kind_name(r.kind), any ? "any" : "closest", r.width, order_name(r.order), r.threads, r.rtpack_mrays,
-                 r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
-                 r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped);
-  }
   if (!builds.empty()) {
     std::fprintf(o, "\nbuild (same triangles; Embree ROBUST + HIGH quality):\n%3s %3s %12s %14s %15s %10s\n", "W", "T",
-                 "rtpack s", "Embree HIGH s", "Embree/rtpack", "B/tri");
+                 "rtpack s", "Embree HIGH s", "Embree/rtpack", "mem B/tri");
     for (const BuildRecord& b : builds)
       std::fprintf(o, "%3d %3d %12.3f %14.3f %15.2f %10.1f\n", b.width, b.threads, b.rtpack_seconds, b.embree_seconds,
                    b.embree_seconds / b.rtpack_seconds, b.bytes_per_triangle);
@@ -456,15 +468,19 @@ int main(int argc, char** argv) {
   CLI::App app{"rtpack-bench: rtpack's in-core tracer vs Embree 3 (ROBUST) on the same rays, same run"};
   rtp::tools::add_version_flag(app, "rtpack-bench");
   Config cfg;
-  std::string kinds = "primary,random,bounce,shadow", width = "all", threads = "all", order = "all", isa = "best";
+  std::string kinds = "primary,random,bounce,shadow", width = "8", threads = "all", order = "octant", isa = "best";
+  bool all = false;
   app.add_option("scene", cfg.scene_path, "input .gltf or .glb")->required();
   app.add_option("--allow-path", cfg.allow_paths,
                  "also read external buffers from DIR (repeatable; default: only inside the glTF's directory)");
-  app.add_option("--rays", cfg.rays, "rays per kind (default 524288)")->check(CLI::Range(size_t(1), size_t(1) << 30));
+  app.add_option("--rays", cfg.rays, "rays per kind (default 65536; 524288 with --all)")->check(CLI::Range(size_t(1), size_t(1) << 30));
   app.add_option("--kinds", kinds, "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
-  app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default all)");
+  app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default 8)");
   app.add_option("--threads", threads, "thread count or all (1, 2, 4, ... up to the hardware threads; default all)");
-  app.add_option("--order", order, "traversal order: octant, active or all (default all)");
+  app.add_option("--order", order, "traversal order: octant, active or all (default octant)");
+  auto* all_flag = app.add_flag("--all", all,
+                                "the full sweep: every width and order, 524288 rays per kind (an explicit --width, "
+                                "--order or --rays still wins); takes minutes");
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512 (default best)");
   app.add_option("--reps", cfg.reps, "timed repetitions, best taken (default 3)")->check(CLI::Range(1, 100));
   app.add_option("--seed", cfg.seed, "ray generator seed (default 1)");
@@ -488,8 +504,9 @@ int main(int argc, char** argv) {
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
     convert_flag->excludes(app.get_option(trace_only));
   convert_flag->excludes(build_stats);
+  convert_flag->excludes(all_flag);
   bench::DagBenchConfig dag;
-  bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats);
+  bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -499,6 +516,11 @@ int main(int argc, char** argv) {
     std::cerr << "rtpack-bench: " << msg << "\n";
     return int(ExitCode::kUsage);
   };
+  if (all) {
+    if (!app.count("--width")) width = "all";
+    if (!app.count("--order")) order = "all";
+    if (!app.count("--rays")) cfg.rays = size_t(1) << 19;
+  }
   for (const std::string& k : split_list(kinds)) {
     const auto kind = parse_ray_kind(k);
     if (!kind) return usage("unknown ray kind '" + k + "' (primary, random, bounce, shadow, inside, short)");

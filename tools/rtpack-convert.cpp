@@ -15,15 +15,13 @@
 #include "core/progress.h"
 #include "mesh/prepare.h"
 #include "package/package.h"
+#include "package/convert.h"
 #include "package/write_package.h"
 #include "scene/import.h"
 #include "scene/summary.h"
 #include "tool_version.h"
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
@@ -105,76 +103,61 @@ int main(int argc, char** argv) {
       rtp::check_not_same_file(input, output);
       rtp::check_output_path(output);
     }
-    const auto t0 = Clock::now();
-    progress.stage("import");
-    rtp::ImportOptions opt;
-    opt.scene = scene_index;
-    opt.allowed_dirs = allow_paths;
-    for (const std::string& a : attributes) (a == "normal" ? opt.normals : opt.uvs) = true;
-    rtp::Scene scene = rtp::import_gltf(input, opt);
-    const auto t1 = Clock::now();
-    for (const auto& [want, name] : {std::pair{opt.normals, "NORMAL"}, std::pair{opt.uvs, "TEXCOORD_0"}}) {
-      bool any = false;
-      for (const rtp::Mesh& m : scene.meshes) any |= !(name[0] == 'N' ? m.normals.empty() : m.uvs.empty());
-      if (want && !any) scene.warnings.push_back(std::string("--attributes: no mesh has ") + name + "; none stored");
-    }
-    progress.stage("prepare");
-    rtp::PrepareOptions prep;
-    prep.clean.weld_eps = weld;
-    prep.subdivide_levels = subdivide;
-    prep.subdivide_to = subdivide_to;
-    const rtp::PrepareReport report = rtp::prepare_scene(scene, prep);
-    const auto t2 = Clock::now();
+    rtp::ConvertSettings cs;
+    cs.input = input;
+    cs.output = output;
+    cs.scene = scene_index;
+    cs.allow_paths = allow_paths;
+    cs.attributes = attributes;
+    cs.weld = weld;
+    cs.subdivide = subdivide;
+    cs.subdivide_to = subdivide_to;
+    cs.width = width;
+    cs.leaf_width = leaf_width;
+    cs.bvh_build = build;
+    cs.chunk_target = chunk_target;
+    cs.chunk_by = chunk_by;
+    cs.zstd_level = zstd_level;
+    cs.dag = !no_dag;
+    cs.dag_resolution = dag_resolution;
+    cs.dry_run = dry_run;
+    rtp::ConvertHooks hooks;
+    hooks.stage = [&](const std::string& name, bool counts) { progress.stage(name, counts); };
+    hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
+    hooks.prepared = [&](const rtp::Scene& sc, const rtp::PrepareReport&) {  // warnings before the long stages
+      progress.finish();
+      if (!quiet)
+        for (const auto& w : sc.warnings) std::cerr << "warning: " << input << ": " << w << "\n";
+    };
+    const rtp::ConvertOutcome done = rtp::convert_scene(cs, hooks);
     progress.finish();
-    if (!quiet)
-      for (const auto& w : scene.warnings) std::cerr << "warning: " << input << ": " << w << "\n";
+    const rtp::Scene& scene = done.scene;
     if (dry_run) {
       if (json) {
         nlohmann::json j = rtp::scene_summary_json(scene);
-        j["preparation"] = rtp::prepare_report_json(report);
+        j["preparation"] = rtp::prepare_report_json(done.prepare);
         j.update(rtp::tools::json_stamp("rtpack-convert"));
         std::cout << j.dump(2) << "\n";
       } else {
-        std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(report);
+        std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(done.prepare);
       }
       if (verbose)
-        std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n", seconds(t0, t1), seconds(t1, t2),
-                     rtp::peak_rss_mib());
+        std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n", done.import_cost.seconds,
+                     done.prepare_cost.seconds, rtp::peak_rss_mib());
       return 0;
     }
-    progress.stage("batching points");
-    rtp::ClusterOptions co;
-    co.chunk_target = chunk_target;
-    co.chunk_by = chunk_by == "unique" ? rtp::ChunkBy::kUnique : rtp::ChunkBy::kInstanced;
-    const rtp::Plan plan = rtp::plan_batching_points(scene, co);
-    const auto t3 = Clock::now();
-    progress.stage("chunks");
-    rtp::ConvertOptions cv;
-    cv.width = width;
-    cv.leaf_width = leaf_width;
-    cv.bvh.method = build == "split" ? rtp::BuildMethod::kSplit : rtp::BuildMethod::kCollapse;
-    cv.zstd_level = zstd_level;
-    cv.dag = !no_dag;
-    cv.voxel.resolution = dag_resolution;
-    cv.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
-    cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
-                   {"source", rtp::utf8_display(std::filesystem::path(input).filename().string())},
-                   {"options",
-                    {{"bvh_width", width}, {"leaf_width", leaf_width}, {"bvh_build", build}, {"chunk_target", chunk_target},
-                     {"chunk_by", chunk_by}, {"zstd_level", zstd_level}, {"subdivide", subdivide},
-                     {"subdivide_to", subdivide_to}, {"weld", weld}, {"scene", scene.gltf_scene},
-                     {"attributes", attributes}, {"dag", !no_dag}, {"dag_resolution", dag_resolution}}}};
-    const rtp::ConvertReport rep = rtp::write_package(scene, plan, output, cv);
-    const auto t4 = Clock::now();
-    progress.finish();
+    const rtp::Plan& plan = done.plan;
+    const rtp::ConvertReport& rep = done.report;
+    const double t_import = done.import_cost.seconds, t_prepare = done.prepare_cost.seconds, t_plan = done.plan_cost.seconds,
+                 t_chunks = done.chunks_cost.seconds;
     // Input = what the importer read: the glTF/.glb and its external buffers (images are never read).
     const rtp::InputFiles& inf = scene.input;
     const double in_bytes = double(inf.read_bytes());
-    const double per_instance = double(rep.file_bytes) / double(std::max<size_t>(1, scene.instances.size()));
+    const double per_instance = double(rep.package_bytes) / double(std::max<size_t>(1, scene.instances.size()));
     const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
     nlohmann::json sections = nlohmann::json::object();
     for (const auto& [kind, s] : rep.by_kind)
-      sections[kind] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
+      sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
                         {"bytes_per_unique_triangle", double(s.stored) / tris}};
     nlohmann::json j = {{"input", rtp::utf8_display(input)},
                         {"output", rtp::utf8_display(output)},
@@ -182,7 +165,7 @@ int main(int argc, char** argv) {
                         {"input_files", {{"gltf_bytes", inf.gltf_bytes}, {"buffer_bytes", inf.buffer_bytes},
                                          {"buffer_files", inf.buffer_files}, {"images_not_read", inf.images},
                                          {"image_file_bytes_not_read", inf.image_file_bytes}}},
-                        {"output_bytes", rep.file_bytes},
+                        {"package_bytes", rep.package_bytes},
                         {"chunks", rep.chunks},
                         {"batching_points", plan.points.size()},
                         {"mesh_segments", plan.segments.size()},
@@ -190,14 +173,14 @@ int main(int argc, char** argv) {
                         {"unique_triangles", scene.unique_triangles()},
                         {"instanced_triangles", scene.instanced_triangles()},
                         {"instances", scene.instances.size()},
-                        {"bytes_per_unique_triangle", double(rep.file_bytes) / tris},
+                        {"bytes_per_unique_triangle", double(rep.package_bytes) / tris},
                         {"bytes_per_instance", per_instance},
                         {"sections", sections},
                         {"dag", nlohmann::json::object()},
-                        {"seconds", {{"import", seconds(t0, t1)}, {"prepare", seconds(t1, t2)}, {"plan", seconds(t2, t3)},
-                                     {"chunks", seconds(t3, t4)}, {"total", seconds(t0, t4)}}},
+                        {"seconds", {{"import", t_import}, {"prepare", t_prepare}, {"plan", t_plan},
+                                     {"chunks", t_chunks}, {"total", done.total_seconds()}}},
                         {"peak_rss_mib", rtp::peak_rss_mib()}};
-    if (cv.dag) {
+    if (!no_dag) {
       nlohmann::json hist = nlohmann::json::object();
       for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
       j["dag"] = {{"pool_bytes", rep.dag_pool_bytes}, {"separate_bytes", rep.dag_separate_bytes},
@@ -219,11 +202,11 @@ int main(int argc, char** argv) {
                 (inf.buffer_files == 1 ? " buffer " : " buffers ") + human(double(inf.buffer_bytes)) + ")";
       if (inf.images > 0) read += ", " + std::to_string(inf.images) + (inf.images == 1 ? " image" : " images") + " not read";
       std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %.1f B per instance)\n", read.c_str(),
-                  human(double(rep.file_bytes)).c_str(), double(rep.file_bytes) / tris, per_instance);
+                  human(double(rep.package_bytes)).c_str(), double(rep.package_bytes) / tris, per_instance);
       for (const auto& [kind, s] : rep.by_kind)
         std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
                     human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
-      if (cv.dag) {
+      if (!no_dag) {
         std::string res;
         for (const auto& [r, n] : rep.dag_resolutions) res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
         std::printf("  culling DAGs   %s in one pool (%s if built apart), %llu set cells; %s; voxelized in %.2f s\n",
@@ -231,7 +214,17 @@ int main(int argc, char** argv) {
                     (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);
       }
       std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n",
-                  seconds(t0, t1), seconds(t1, t2), seconds(t2, t3), seconds(t3, t4), rtp::peak_rss_mib());
+                  t_import, t_prepare, t_plan, t_chunks, rtp::peak_rss_mib());
+    }
+    if (verbose) {  // what -v adds: each stage with the peak RSS reached by its end, and the settings
+      const std::pair<const char*, rtp::StageCost> stages[4] = {
+          {"import", done.import_cost}, {"prepare", done.prepare_cost}, {"batching points", done.plan_cost}, {"chunks", done.chunks_cost}};
+      for (const auto& [name, c] : stages)
+        std::fprintf(stderr, "stage %-16s %8.3f s  peak RSS %7.1f MiB\n", name, c.seconds, c.peak_rss_mib);
+      std::fprintf(stderr, "  of chunks: voxelize %.3f s (summed over threads)\n", rep.voxelize_seconds);
+      std::fprintf(stderr, "settings: %d threads, W=%d, B=%d, zstd level %d, %s build, chunk target %llu triangles\n",
+                   int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), width, leaf_width,
+                   zstd_level, build.c_str(), (unsigned long long)plan.chunk_target);
     }
   } catch (const rtp::Error& e) {
     progress.finish();

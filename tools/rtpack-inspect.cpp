@@ -98,8 +98,8 @@ void print_dag(const json& d) {
 void print_text(const std::string& path, const json& j) {
   const json& h = j["header"];
   std::printf("package         %s\n", path.c_str());
-  std::printf("  file          %s bytes (%s), %s chunks\n", group(u64(j["file_bytes"])).c_str(),
-              human(double(u64(j["file_bytes"]))).c_str(), group(u64(h["toc_entries"])).c_str());
+  std::printf("  file          %s bytes (%s), %s chunks\n", group(u64(j["package_bytes"])).c_str(),
+              human(double(u64(j["package_bytes"]))).c_str(), group(u64(h["toc_entries"])).c_str());
   std::printf("  version       %s; W = %llu (BVH width), B = %llu (leaf block)\n", h["version"].get<std::string>().c_str(),
               (unsigned long long)u64(h["bvh_width"]), (unsigned long long)u64(h["leaf_width"]));
   std::string attrs;

@@ -33,6 +33,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -98,18 +99,30 @@ struct Totals {
 // ---------------------------------------------------------------------------------------------------
 // Source meshes
 
-// Default sample paths are relative to the repository root: try the working directory, then the
-// directories above the executable (the build directory usually sits inside the repository).
+// Default sample paths are relative to a data root holding samples/. Looked for, in order: $RTP_DATA_DIR,
+// the installed data directory beside the executable (PREFIX/bin -> PREFIX/share/rtpack, `cmake --install
+// --component tools`), the working directory, and every directory above the executable (a build directory
+// inside the repository). Not found: exit 2 naming every place looked in and --mesh.
 std::string resolve_default(const std::string& rel) {
-  if (fs::exists(rel)) return rel;
+  std::vector<fs::path> roots;
+  if (const char* env = std::getenv("RTP_DATA_DIR"); env && *env) roots.push_back(env);
   std::error_code ec;
-  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) return rel;
-  for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
-    if (fs::exists(dir / rel, ec)) return (dir / rel).string();
-    if (dir == dir.root_path()) break;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) roots.push_back(exe.parent_path().parent_path() / "share" / "rtpack");
+  roots.push_back(fs::current_path(ec));
+  if (!exe.empty())
+    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
+      roots.push_back(dir);
+      if (dir == dir.root_path()) break;
+    }
+  std::string looked;
+  for (const fs::path& root : roots) {
+    if (root.empty()) continue;
+    if (fs::is_regular_file(root / rel, ec)) return (root / rel).string();
+    looked += (looked.empty() ? "" : ", ") + root.string();
   }
-  return rel;
+  throw Error(ExitCode::kInputIo, "cannot find the default mesh '" + rel + "' (looked under: " + looked +
+                                      "); pass your own with --mesh FILE.gltf, or set RTP_DATA_DIR to a directory holding samples/");
 }
 
 std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths) {

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <cctype>
 #include <string>
 
 #include "core/error.h"
@@ -14,7 +15,7 @@
 namespace rtp::tools {
 
 // Bumped when a key of any tool's --json output changes meaning or disappears (adding keys does not).
-inline constexpr int kJsonSchemaVersion = 1;
+inline constexpr int kJsonSchemaVersion = 2;  // 2: package_bytes everywhere, snake_case section keys
 
 inline std::string version_line(const char* tool) {
   return std::string(tool) + " " RTP_VERSION " (package format " + std::to_string(fmt::kVersionMajor) + "." +
@@ -26,6 +27,17 @@ inline void add_version_flag(CLI::App& app, const char* tool) {
 }
 
 // The first keys of every --json object (or of every record of a JSON array).
+// A JSON key from a display name, snake_case (docs/json.md): "top-level BVH" -> "top_level_bvh".
+inline std::string json_key(const std::string& name) {
+  std::string k;
+  for (const char c : name) {
+    if (std::isalnum(static_cast<unsigned char>(c))) k += char(std::tolower(static_cast<unsigned char>(c)));
+    else if (!k.empty() && k.back() != '_') k += '_';
+  }
+  while (!k.empty() && k.back() == '_') k.pop_back();
+  return k;
+}
+
 inline nlohmann::json json_stamp(const char* tool) {
   return {{"schema_version", kJsonSchemaVersion}, {"tool_version", version_line(tool)}};
 }

@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <fstream>
 
 namespace rtp {
@@ -21,16 +23,24 @@ double current_rss_mib() {
   return double(resident) * double(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
 }
 
-Progress::Progress(bool enabled) : on_(enabled && isatty(STDERR_FILENO)) {}
+namespace {
+bool forced() {
+  const char* v = std::getenv("RTP_PROGRESS");
+  return v && std::string(v) == "1";
+}
+}  // namespace
+
+Progress::Progress(bool enabled) : on_(enabled && (isatty(STDERR_FILENO) || forced())), lines_(enabled && forced()) {}
 Progress::~Progress() { finish(); }
 
-void Progress::stage(const std::string& name) {
+void Progress::stage(const std::string& name, bool counts) {
   finish();
   stage_ = name;
+  counts_ = counts;
   start_ = last_ = std::chrono::steady_clock::now();
   if (on_) {
-    std::fprintf(stderr, "\r\033[K%s ...", stage_.c_str());
-    drawn_ = true;
+    std::fprintf(stderr, lines_ ? "%s ...\n" : "\r\033[K%s ...", stage_.c_str());
+    drawn_ = !lines_;
   }
 }
 
@@ -42,9 +52,12 @@ void Progress::update(uint64_t done, uint64_t total) {
   const double el = std::chrono::duration<double>(now - start_).count();
   const double frac = double(done) / double(total);
   const double eta = frac > 0 ? el * (1 - frac) / frac : 0;
-  std::fprintf(stderr, "\r\033[K%s %5.1f%%  %llu/%llu  ETA %.0f s  RSS %.0f MiB", stage_.c_str(), 100 * frac,
-               static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), eta, current_rss_mib());
-  drawn_ = true;
+  char counts[64] = "";
+  if (counts_)
+    std::snprintf(counts, sizeof counts, "  %llu/%llu", static_cast<unsigned long long>(done), static_cast<unsigned long long>(total));
+  std::fprintf(stderr, "%s%s %5.1f%%%s  ETA %.0f s  peak RSS %.0f MiB%s", lines_ ? "" : "\r\033[K", stage_.c_str(),
+               100 * frac, counts, eta, peak_rss_mib(), lines_ ? "\n" : "");
+  drawn_ = !lines_;
 }
 
 void Progress::finish() {

@@ -446,7 +446,7 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
     }
   const double tris = double(std::max<uint64_t>(1, h.unique_triangles));
   nlohmann::json j;
-  j["file_bytes"] = h.file_size;
+  j["package_bytes"] = h.file_size;
   nlohmann::json attrs = nlohmann::json::array();
   if (h.flags & fmt::kFlagNormals) attrs.push_back("normal");
   if (h.flags & fmt::kFlagUvs) attrs.push_back("uv");

@@ -261,7 +261,17 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   ConvertReport rep;
   std::vector<Box3f> mesh_box(scene.meshes.size());  // once per mesh, not per instance
   tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { mesh_box[m] = box_of(scene.meshes[m].local_bounds()); });
-  const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size(), total = n_seg + n_pts + 6 + (o.dag ? 1 : 0);
+  const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size();
+  // Progress in work units, not chunks: a chunk weighs its triangles, instances and 1, so a few large
+  // chunks at the end do not hold the bar at 99 %. Resident chunks weigh 1 each.
+  auto work_of = [&](ChunkKind kind, uint64_t id) -> uint64_t {
+    if (kind == ChunkKind::kMeshSegment) return plan.segments[id].triangles + 1;
+    if (kind == ChunkKind::kBatchingPoint) return plan.points[id].unique_triangles + plan.points[id].instances.size() + 1;
+    return 1;
+  };
+  uint64_t total = 6 + (o.dag ? 1 : 0);
+  for (uint64_t k = 0; k < n_seg; ++k) total += work_of(ChunkKind::kMeshSegment, k);
+  for (uint64_t k = 0; k < n_pts; ++k) total += work_of(ChunkKind::kBatchingPoint, k);
   uint64_t next = 0, written = 0;
   // Culling proxies (Molenaar 2019 §4.2): voxelized with each point's chunk in the parallel stage,
   // joined to the one shared pool in point order in the serial stage (deterministic bytes).
@@ -281,7 +291,8 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
     rep.block_bytes += job.block_bytes;
     rep.unique_triangles += job.triangles;
     ++rep.chunks;
-    if (o.progress) o.progress(++written, total);
+    written += work_of(ChunkKind(e.kind), job.id);
+    if (o.progress) o.progress(std::min(written, total), total);
   };
   // Ordered pipeline: ids in order -> build + compress in parallel -> append in order.
   const size_t tokens = size_t(2 * tbb::this_task_arena::max_concurrency());
@@ -358,7 +369,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   h.bvh_width = uint32_t(W);
   h.leaf_width = uint32_t(B);
   writer.finish(h);
-  rep.file_bytes = writer.bytes_written();
+  rep.package_bytes = writer.bytes_written();
   return rep;
 }
 

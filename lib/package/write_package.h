@@ -31,7 +31,7 @@ struct SectionBytes {
 };
 
 struct ConvertReport {
-  uint64_t file_bytes = 0;
+  uint64_t package_bytes = 0;
   uint64_t chunks = 0;
   std::map<std::string, SectionBytes> by_kind;  // "mesh segment", "batching point", "metadata", ...
   uint64_t node_bytes = 0, block_bytes = 0;     // raw BVH bytes over all chunks

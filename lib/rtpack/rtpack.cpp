@@ -121,7 +121,7 @@ Package Package::open(const std::string& path) {
     Info& in = impl->info;
     in.format_major = h.version_major;
     in.format_minor = h.version_minor;
-    in.file_bytes = h.file_size;
+    in.package_bytes = h.file_size;
     in.unique_triangles = h.unique_triangles;
     in.instanced_triangles = h.instanced_triangles;
     in.bvh_width = h.bvh_width;

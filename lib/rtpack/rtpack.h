@@ -65,7 +65,7 @@ struct Bounds {
 // What the header says about the whole package.
 struct Info {
   uint32_t format_major = 0, format_minor = 0;
-  uint64_t file_bytes = 0;
+  uint64_t package_bytes = 0;  // the file, as rtpack-convert and rtpack-inspect --json name it
   uint64_t unique_triangles = 0;     // stored triangles
   uint64_t instanced_triangles = 0;  // triangles as the scene shows them (instances expanded)
   uint64_t instances = 0;

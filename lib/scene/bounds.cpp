@@ -3,6 +3,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include <algorithm>
+#include <memory>
 #include <numeric>
 
 #include "scene/scene.h"
@@ -103,30 +105,37 @@ Aabb compute_instance_world_bounds(const Scene& scene, size_t instance) {
   return instance_bounds(PointTree(scene.meshes[inst.mesh]), inst);
 }
 
-Aabb compute_world_bounds(const Scene& scene) {
-  std::vector<PointTree> trees;
-  trees.reserve(scene.meshes.size());
-  for (const Mesh& m : scene.meshes) {
-    trees.emplace_back(m);
-  }
-  return tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(0, scene.instances.size(), 1024), Aabb{},
-      [&](const tbb::blocked_range<size_t>& r, Aabb acc) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          const Instance& inst = scene.instances[i];
-          const Aabb b = instance_bounds(trees[inst.mesh], inst);
-          if (b.empty()) continue;
-          for (int row = 0; row < 3; ++row) {
-            acc.hi[row] = std::max(acc.hi[row], b.hi[row]);
-            acc.lo[row] = std::min(acc.lo[row], b.lo[row]);
+Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t, uint64_t)>& progress) {
+  // One point tree per mesh, built in parallel (each is independent).
+  std::vector<std::unique_ptr<PointTree>> trees(scene.meshes.size());
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { trees[m] = std::make_unique<PointTree>(scene.meshes[m]); });
+  // Instances in slices of about 1 %, each in parallel; progress is reported between slices from the
+  // calling thread. min/max do not depend on the order: the bounds are the same for any thread count.
+  const size_t n = scene.instances.size(), slice = std::max<size_t>(4096, n / 100);
+  Aabb all;
+  for (size_t first = 0; first < n; first += slice) {
+    const size_t last = std::min(n, first + slice);
+    all.grow(tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(first, last, 1024), Aabb{},
+        [&](const tbb::blocked_range<size_t>& r, Aabb acc) {
+          for (size_t i = r.begin(); i != r.end(); ++i) {
+            const Instance& inst = scene.instances[i];
+            const Aabb b = instance_bounds(*trees[inst.mesh], inst);
+            if (b.empty()) continue;
+            for (int row = 0; row < 3; ++row) {
+              acc.hi[row] = std::max(acc.hi[row], b.hi[row]);
+              acc.lo[row] = std::min(acc.lo[row], b.lo[row]);
+            }
           }
-        }
-        return acc;
-      },
-      [](Aabb a, const Aabb& b) {
-        a.grow(b);
-        return a;
-      });
+          return acc;
+        },
+        [](Aabb a, const Aabb& b) {
+          a.grow(b);
+          return a;
+        }));
+    if (progress) progress(last, n);
+  }
+  return all;
 }
 
 }  // namespace rtp

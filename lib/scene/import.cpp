@@ -95,7 +95,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   scene.warnings.insert(scene.warnings.begin(), doc.warnings.begin(), doc.warnings.end());
   if (options.on_warning)
     for (const auto& w : scene.warnings) options.on_warning(w);
-  scene.bounds = compute_world_bounds(scene);
+  scene.bounds = compute_world_bounds(scene, options.on_progress);
   check_float_bounds(scene);
   return scene;
 }

@@ -17,6 +17,9 @@ struct ImportOptions {
   // Directories besides the glTF's own from which external buffers may be read (--allow-path).
   std::vector<std::string> allowed_dirs;
   std::function<void(const std::string&)> on_warning;  // also collected in Scene::warnings
+  // Progress of the longest step on instanced scenes, the exact world bounds: (instances done, total),
+  // called from the importing thread.
+  std::function<void(uint64_t, uint64_t)> on_progress;
 };
 
 Scene import_gltf(const std::string& path, const ImportOptions& options = {});

@@ -2,6 +2,7 @@
 // The in-memory Scene every later stage consumes: meshes in local space, instances with affine
 // transforms, cameras, and a source map back to the glTF file.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -90,7 +91,8 @@ struct Scene {
 
 // Exact world bounds of all instances: for every instance, the extreme vertices along each world axis
 // of the stored transform (branch and bound over a per-mesh point tree, not a transformed box).
-Aabb compute_world_bounds(const Scene& scene);
+// `progress(done, total)` (optional) is called from the calling thread as instances are done.
+Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t, uint64_t)>& progress = {});
 // The same for one instance (builds that mesh's point tree: for diagnostics, not for loops).
 Aabb compute_instance_world_bounds(const Scene& scene, size_t instance);
 

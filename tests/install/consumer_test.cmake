@@ -10,14 +10,8 @@ endforeach()
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 
-function(run)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    string(REPLACE ";" " " cmd "${ARGN}")
-    message(FATAL_ERROR "failed (${rc}): ${cmd}\n${out}\n${err}")
-  endif()
-  set(RUN_OUT "${out}" PARENT_SCOPE)
-endfunction()
+set(CWD ${WORK})
+include(${CMAKE_CURRENT_LIST_DIR}/run.cmake)
 
 # 1. Install only the reader component.
 run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${WORK}/prefix --component reader)

@@ -200,8 +200,8 @@ class ReaderVsInspect(unittest.TestCase):
 
     def _header(self, path, d, j):
         h, jh = d.h, j["header"]
-        self.assertEqual(j["file_bytes"], int(h["file_size"]))
-        self.assertEqual(j["file_bytes"], os.path.getsize(path))
+        self.assertEqual(j["package_bytes"], int(h["file_size"]))
+        self.assertEqual(j["package_bytes"], os.path.getsize(path))
         self.assertEqual(jh["version"], f"{int(h['version_major'])}.{int(h['version_minor'])}")
         self.assertEqual(jh["attributes"], [n for bit, n in ((1, "normal"), (2, "uv")) if int(h["flags"]) & bit])
         for k in ("bvh_width", "leaf_width", "unique_triangles", "instanced_triangles"):
@@ -467,7 +467,7 @@ class Refusals(unittest.TestCase):
         # --verify lists problems; a package refused before that is {"error": {...}} (docs/json.md).
         if report and "error" in report:
             self.assertEqual(report["error"]["code"], 3)
-            self.assertEqual(report["schema_version"], 1)
+            self.assertEqual(report["schema_version"], 2)
         listed = report["problems"]["listed"] if report and "problems" in report else []
         cpp = listed + ([report["error"]["message"]] if report and "error" in report else []) + [proc.stderr]
         self.assertTrue(any(msg in m for m in cpp), f"python: {msg}\nC++: {cpp}")
@@ -548,7 +548,7 @@ class Refusals(unittest.TestCase):
                             capture_output=True, text=True, timeout=60)
         self.assertEqual(ok.returncode, 0, ok.stderr)
         s = json.loads(ok.stdout)
-        self.assertEqual((s["version"], s["file_bytes"]), ("3.0", len(self.good)))
+        self.assertEqual((s["version"], s["package_bytes"]), ("3.0", len(self.good)))
         path = self.write(self.good[:-1], "cli-trunc")
         bad = subprocess.run([sys.executable, os.path.join(ROOT, "python", "rtpack.py"), path],
                              capture_output=True, text=True, timeout=60)
