@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_run.h"
+#include "package/write_package.h"
 
 namespace {
 
@@ -219,7 +220,7 @@ TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
   EXPECT_GT(chunks, 0u);
   EXPECT_EQ(r["bvh_width"], 8);
   EXPECT_EQ(r["leaf_width"], 8);
-  EXPECT_EQ(r["zstd_level"], 9);
+  EXPECT_EQ(r["zstd_level"], rtp::kDefaultZstdLevel);  // rtpack-convert's default
 
   // Sections: the chunks' stored bytes; the container (4 KiB header, TOC, alignment padding) is the rest.
   uint64_t stored = 0, section_chunks = 0;

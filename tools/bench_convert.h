@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "package/write_package.h"  // kDefaultZstdLevel
+
 namespace rtp::bench {
 
 struct ConvertBenchConfig {
@@ -12,7 +14,7 @@ struct ConvertBenchConfig {
   std::vector<std::string> allow_paths;  // --allow-path
   std::string output;         // --convert-output: keep the package there (else a temporary file, deleted)
   int bvh_width = 8;          // leaf width = W, 8 for W = 16 (rtpack-convert's default)
-  int zstd_level = 9;
+  int zstd_level = kDefaultZstdLevel;
   uint64_t chunk_target = 0;  // 0 = derived from the scene
   int threads = 0;            // 0 = all hardware threads
   int reps = 3;               // best of reps after one warm-up (convert and Embree alike)

@@ -49,7 +49,7 @@ ConvertOptions convert_options(const std::string& scene_path, bool dag, uint32_t
   cv.width = 8;
   cv.leaf_width = 8;
   cv.bvh.method = BuildMethod::kCollapse;
-  cv.zstd_level = 9;
+  cv.zstd_level = kDefaultZstdLevel;
   cv.dag = dag;
   cv.voxel.resolution = resolution;
   cv.metadata = {{"tool_version", "rtpack " RTP_VERSION " (rtpack-bench --dag)"},

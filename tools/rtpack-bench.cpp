@@ -497,7 +497,7 @@ int main(int argc, char** argv) {
       ->needs(convert_flag);
   app.add_option("--bvh-width", conv.bvh_width, "--convert: BVH width W, 4, 8 or 16 (leaf width W, 8 for W=16; default 8)")
       ->check(CLI::IsMember({4, 8, 16}))->needs(convert_flag);
-  app.add_option("--zstd-level", conv.zstd_level, "--convert: zstd level per chunk, 0 = store (default 9)")
+  app.add_option("--zstd-level", conv.zstd_level, "--convert: zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) + ")")
       ->check(CLI::Range(0, 22))->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
       ->check(CLI::PositiveNumber)->needs(convert_flag);

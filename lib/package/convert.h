@@ -28,7 +28,7 @@ struct ConvertSettings {
   std::string bvh_build = "collapse";        // or "split"
   uint64_t chunk_target = 0;                 // 0: derived from the scene
   std::string chunk_by = "instanced";        // or "unique"
-  int zstd_level = 9;                        // 0 = store
+  int zstd_level = kDefaultZstdLevel;        // 0 = store
   bool dag = true;                           // culling DAGs
   uint32_t dag_resolution = 0;               // 0: per batching point
   bool dry_run = false;                      // stop after preparation
