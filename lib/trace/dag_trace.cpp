@@ -56,11 +56,11 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
   // `seen`: visited (offset, level) pairs, one bit per level per word (levels <= 8), shared by the
   // grids of one pool so a node reachable from many batching points is checked once.
   struct Item { uint32_t off; int level; };
-  std::vector<Item> todo{{g.root, levels}};
+  std::vector<Item> pending{{g.root, levels}};
   auto at = [](const Item& it) { return "node at word " + std::to_string(it.off) + " (level " + std::to_string(it.level) + ")"; };
-  while (!todo.empty()) {
-    const Item it = todo.back();
-    todo.pop_back();
+  while (!pending.empty()) {
+    const Item it = pending.back();
+    pending.pop_back();
     if (it.off >= v.word_count) return at(it) + " out of range (" + std::to_string(v.word_count) + " words)";
     if (seen.empty()) seen.assign(v.word_count, 0);
     const uint8_t bit = uint8_t(1u << (it.level - 1));
@@ -82,7 +82,7 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
       } else if (it.level == 1) {
         if (bad_leaf(ref)) return at(it) + ": " + leaf_error(ref);
       } else {
-        todo.push_back({ref, it.level - 1});
+        pending.push_back({ref, it.level - 1});
       }
     }
   }
@@ -112,10 +112,10 @@ uint64_t dag_reachable_bytes(const fmt::DagGrid& g, const DagView& v) {
   std::unordered_set<uint32_t> nodes, leaves;
   std::unordered_set<uint64_t> seen;
   uint64_t bytes = 0;
-  std::vector<std::pair<uint32_t, int>> todo{{g.root, levels}};
-  while (!todo.empty()) {
-    auto [off, level] = todo.back();
-    todo.pop_back();
+  std::vector<std::pair<uint32_t, int>> pending{{g.root, levels}};
+  while (!pending.empty()) {
+    auto [off, level] = pending.back();
+    pending.pop_back();
     if (!seen.insert(uint64_t(off) << 8 | uint64_t(level)).second) continue;
     const uint32_t head = v.words[off], refs = fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head);
     const uint32_t im = fmt::dag_inline_mask(head);
@@ -126,7 +126,7 @@ uint64_t dag_reachable_bytes(const fmt::DagGrid& g, const DagView& v) {
       if (level == 1) {
         if (leaves.insert(ref).second) bytes += 8;
       } else {
-        todo.push_back({ref, level - 1});
+        pending.push_back({ref, level - 1});
       }
     }
   }
@@ -304,8 +304,8 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
       exist = full = e.ref;
     }
     // Push in reverse octant order (i ^ octant for i = 7 .. 0): the nearest ends on top.
-    for (uint32_t todo = kOctantPerm[octant][exist & hit]; todo; todo &= ~(1u << (31 - __builtin_clz(todo)))) {
-      const uint32_t ch = uint32_t(31 - __builtin_clz(todo)) ^ octant;
+    for (uint32_t pending = kOctantPerm[octant][exist & hit]; pending; pending &= ~(1u << (31 - __builtin_clz(pending)))) {
+      const uint32_t ch = uint32_t(31 - __builtin_clz(pending)) ^ octant;
       const uint16_t x = uint16_t(e.x + (ch & 1) * half), y = uint16_t(e.y + ((ch >> 1) & 1) * half),
                      z = uint16_t(e.z + (ch >> 2) * half);
       if (full >> ch & 1) {

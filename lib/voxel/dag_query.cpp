@@ -28,10 +28,10 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
     return out;
   }
   struct Item { uint32_t ref; int level; uint32_t x, y, z; };  // block coordinates of the corner
-  std::vector<Item> todo{{g.root, grid_levels(g.resolution), 0, 0, 0}};
-  while (!todo.empty()) {
-    const Item it = todo.back();
-    todo.pop_back();
+  std::vector<Item> pending{{g.root, grid_levels(g.resolution), 0, 0, 0}};
+  while (!pending.empty()) {
+    const Item it = pending.back();
+    pending.pop_back();
     if (it.level == 0) {
       fill(it.x, it.y, it.z, 1, v.leaves[it.ref]);
       continue;
@@ -47,7 +47,7 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
       else if (im >> c & 1)
         fill(x, y, z, 1, w[0] | uint64_t(w[1]) << 32);
       else
-        todo.push_back({w[0], it.level - 1, x, y, z});
+        pending.push_back({w[0], it.level - 1, x, y, z});
     }
   }
   return out;
