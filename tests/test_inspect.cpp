@@ -204,7 +204,7 @@ std::vector<Corruption> corruptions() {
                  uint32_t* g = section<uint32_t>(chunk, SectionType::kGlobalIds);
                  g[0] = g[1];
                }});
-  c.push_back({"top-level parent pointer", kForest, fmt::ChunkKind::kTopLevelBvh, 0, "parent/slot/depth", [](uint8_t* chunk) {
+  c.push_back({"top-level parent pointer", kForest, fmt::ChunkKind::kTopLevelBvh, 0, "child 1 names parent", [](uint8_t* chunk) {
                  section<fmt::TopNode>(chunk, SectionType::kTopNodes)[1].slot ^= 1;
                }});
   return c;

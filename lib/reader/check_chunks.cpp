@@ -124,7 +124,11 @@ void check_top_level(const fmt::TopNode* nodes, uint64_t count, uint64_t points,
       if (c >= count) fail_invalid(where + ": child " + str(c) + " out of range (" + str(count) + " nodes)");
       if (c <= n) fail_invalid(where + ": child " + str(c) + " is not after its parent");
       if (node_refs[c]++) fail_invalid(where + ": child " + str(c) + " is referenced a second time");
+      // The out-of-core tracer resumes a paused ray by climbing parent pointers (Molenaar 2019 §4.1).
+      if (nodes[c].parent != n || nodes[c].slot != uint32_t(l))
+        fail_invalid(where + ": child " + str(c) + " names parent " + str(nodes[c].parent) + " lane " + str(nodes[c].slot));
     }
+  if (nodes[0].parent != TopNode::kEmpty) fail_invalid(label + ": root node 0 names parent " + str(nodes[0].parent));
   for (uint64_t n = 1; n < count; ++n)
     if (!node_refs[n]) fail_invalid(label + ": node " + str(n) + " is no node's child");
   for (uint64_t p = 0; p < point_refs.size(); ++p)

@@ -25,7 +25,8 @@ constexpr bool range_inside(uint64_t first, uint64_t count, uint64_t size) {
 inline constexpr uint64_t kUnknownCount = ~uint64_t(0);
 
 // Kind 2: every child an empty lane, a batching point < `points` or a node after its parent; every
-// node but the root and every batching point referenced exactly once; filled lanes' boxes finite.
+// node but the root and every batching point referenced exactly once; filled lanes' boxes finite;
+// every child node's parent and slot naming the node and lane that reference it, the root's parent none.
 void check_top_level(const fmt::TopNode* nodes, uint64_t count, uint64_t points, const std::string& label);
 
 // Kind 3: each descriptor's chunk_id = its index, its segment range inside section 10 and its bounds finite.

@@ -325,4 +325,14 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   return out;
 }
 
+bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray) {
+  const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+  const DagHit h = dag_first_entry(grid, pool, org, dir, ray.tnear, ray.tfar);
+  if (h.culled) return false;
+  float t = float(h.t_entry);
+  if (double(t) > h.t_entry) t = std::nextafter(t, -std::numeric_limits<float>::infinity());
+  if (t > ray.tnear) ray.tnear = t;
+  return true;
+}
+
 }  // namespace rtp::voxel

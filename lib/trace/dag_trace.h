@@ -6,6 +6,7 @@
 #include <string>
 
 #include "formats/dag.h"
+#include "formats/ray_file.h"
 
 namespace rtp::voxel {
 
@@ -40,5 +41,9 @@ double dag_ray_growth(const fmt::DagGrid& grid, const double org[3]);
 // [tnear, tfar] (fixed stack, no allocation). Requires check_dag() to have passed.
 DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3],
                        double tnear, double tfar);
+// Molenaar 2019 §4.2, as both package tracers apply it before walking a batching point's BVH: false
+// when the ray is culled; otherwise ray.tnear is raised to the entry distance rounded down to float
+// (no hit of the point's geometry lies before it).
+bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray);
 
 }  // namespace rtp::voxel

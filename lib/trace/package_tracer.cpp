@@ -15,6 +15,7 @@
 #include "reader/check_chunks.h"
 #include "reader/chunk_io.h"
 #include "trace/dag_trace.h"
+#include "trace/top_level_walk.h"
 
 namespace rtp {
 
@@ -54,6 +55,7 @@ class Tracer final : public PackageTracer {
       load_.read_seconds += seconds_since(t0);
       ++load_.chunks;
       load_.raw_bytes += chunks_.back().size();
+      load_.stored_bytes += toc[size_t(i)].stored_size;
       labels_.push_back(chunk_label(toc[size_t(i)], size_t(i)));
       return chunks_.back();
     };
@@ -219,16 +221,9 @@ class Tracer final : public PackageTracer {
   bool enter(size_t p, fmt::Ray& ray, const PackageTraceOptions& o, PackageTraceStats& st) const {
     ++st.point_visits;
     if (!o.cull || !grids_) return true;
-    const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
-    const voxel::DagHit h = voxel::dag_first_entry(grids_[p], dag_, org, dir, ray.tnear, ray.tfar);
-    if (h.culled) {
-      ++st.culled_visits;
-      return false;
-    }
-    float t = float(h.t_entry);
-    if (double(t) > h.t_entry) t = std::nextafter(t, -kInf);
-    if (t > ray.tnear) ray.tnear = t;
-    return true;
+    if (voxel::dag_enter(grids_[p], dag_, ray)) return true;
+    ++st.culled_visits;
+    return false;
   }
 
   // Front-to-back over the top level: lanes sorted by entry distance, skipped once beyond ray.tfar
@@ -242,7 +237,7 @@ class Tracer final : public PackageTracer {
     stack.clear();
     stack.push_back({0, double(ray.tnear)});
     double inv[3];
-    for (int k = 0; k < 3; ++k) inv[k] = 1.0 / double(ray.dir[k]);
+    top_inverse(ray, inv);
     while (!stack.empty()) {
       const Entry e = stack.back();
       stack.pop_back();
@@ -257,20 +252,8 @@ class Tracer final : public PackageTracer {
       int nk = 0;
       for (int l = 0; l < 4; ++l) {
         if (node.child[l] == fmt::TopNode::kEmpty) continue;
-        double t0 = ray.tnear, t1 = ray.tfar;
-        bool hit = true;
-        for (int k = 0; k < 3 && hit; ++k) {
-          const double o = ray.org[k], lo = node.lo[k][l], hi = node.hi[k][l];
-          if (ray.dir[k] == 0) {
-            hit = o >= lo && o <= hi;
-            continue;
-          }
-          double a = (lo - o) * inv[k], b = (hi - o) * inv[k];
-          if (a > b) std::swap(a, b);
-          t0 = std::max(t0, a);
-          t1 = std::min(t1, b * (1 + 1e-12));
-        }
-        if (hit && t0 <= t1) kids[nk++] = {node.child[l], t0};
+        const TopLane c = top_lane(node, l, ray, inv);
+        if (c.hit) kids[nk++] = {node.child[l], c.t0};
       }
       for (int a = 1; a < nk; ++a)  // insertion sort, farthest first: the nearest ends on top
         for (int b = a; b > 0 && kids[b - 1].t < kids[b].t; --b) std::swap(kids[b - 1], kids[b]);
