@@ -18,12 +18,14 @@
 #include "core/json_checked.h"
 #include "core/input_file.h"
 #include "core/output_file.h"
+#include "core/progress.h"
 #include "core/utf8.h"
 #include "package/package.h"
 #include "reader/chunk_io.h"
 #include "reader/attribute_lookup.h"
 #include "reader/camera.h"
 #include "image/image.h"
+#include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 #include "trace/ray_file.h"
 #include "tool_version.h"
@@ -79,6 +81,10 @@ int main(int argc, char** argv) {
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
   app.add_option("--order", order, "traversal order: octant (stack) or active (Benthin's active list)")
       ->check(CLI::IsMember({"octant", "active"}));
+  std::string budget_text;
+  app.add_option("--memory-budget", budget_text,
+                 "trace out of core: batching points and mesh segments held in a cache of this many bytes "
+                 "(e.g. 256MiB, 2GB, or 10% of the package's on-demand bytes); in core without it");
   app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
   app.add_flag("--no-cull", no_cull, "do not test rays against the batching points' culling DAGs (same hits, slower)");
   app.add_flag("--json", json, "print the counts as JSON on stdout");
@@ -125,7 +131,16 @@ int main(int argc, char** argv) {
       rtp::check_output_path(shading_path);
     }
     const rtp::PackageReader reader(package, direct);
-    const auto tracer = rtp::load_package_in_core(reader);
+    // In core (every chunk loaded first) or, with --memory-budget, the batched out-of-core tracer.
+    std::unique_ptr<rtp::PackageTracer> tracer;
+    std::unique_ptr<rtp::OutOfCoreTracer> ooc;
+    uint64_t budget = 0;
+    if (!budget_text.empty()) {
+      budget = rtp::parse_memory_budget(budget_text, rtp::on_demand_bytes(reader));
+      ooc = rtp::open_out_of_core(reader, budget);
+    } else {
+      tracer = rtp::load_package_in_core(reader);
+    }
     std::vector<rtp::fmt::Ray> rays;
     std::string camera_text;
     if (!make_rays.empty()) {
@@ -153,14 +168,22 @@ int main(int argc, char** argv) {
     std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size());
     std::vector<uint8_t> occ(any ? rays.size() : 0);
     std::atomic<uint64_t> invalid{0}, visits{0}, culled{0};
+    rtp::OutOfCoreStats os;
     const auto t0 = std::chrono::steady_clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-      const rtp::PackageTraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
-                                            : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
-      invalid += st.invalid_rays;
-      visits += st.point_visits;
-      culled += st.culled_visits;
-    });
+    if (ooc) {
+      os = any ? ooc->any(rays.data(), occ.data(), rays.size(), opt) : ooc->closest(rays.data(), hits.data(), rays.size(), opt);
+      invalid = os.invalid_rays;
+      visits = os.point_visits;
+      culled = os.culled_visits;
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+        const rtp::PackageTraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
+                                              : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
+        invalid += st.invalid_rays;
+        visits += st.point_visits;
+        culled += st.culled_visits;
+      });
+    }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     uint64_t hit_count = 0;
     if (any) {
@@ -208,25 +231,52 @@ int main(int argc, char** argv) {
     if (render)
       j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
-    const bool culling = opt.cull && tracer->has_dags();
+    const bool has_dags = ooc ? ooc->has_dags() : tracer->has_dags();
+    const bool culling = opt.cull && has_dags;
     const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;
-    j["culling"] = culling ? "on" : (tracer->has_dags() ? "off (--no-cull)" : "off (package has no DAGs)");
+    j["culling"] = culling ? "on" : (has_dags ? "off (--no-cull)" : "off (package has no DAGs)");
     j["batching_point_visits"] = visits.load();
     j["culled_visits"] = culled.load();
     j["cull_rate"] = rate;
-    // Loading: every chunk read (and decompressed) and structurally checked before the first ray.
-    const rtp::PackageLoadStats ls = tracer->load_stats();
-    j["load_seconds"] = ls.total_seconds;
-    j["load_read_seconds"] = ls.read_seconds;
-    j["load_check_seconds"] = ls.check_seconds;
-    j["chunks_loaded"] = ls.chunks;
-    j["chunk_raw_bytes"] = ls.raw_bytes;
+    // The same keys for both paths: in core every chunk is loaded (and checked) before the first ray.
+    const rtp::PackageLoadStats ls = ooc ? rtp::PackageLoadStats{} : tracer->load_stats();
+    j["mode"] = ooc ? "out of core" : "in core";
+    j["memory_budget"] = ooc ? nlohmann::json(budget) : nlohmann::json(nullptr);
+    j["rounds"] = ooc ? os.rounds : 0;
+    j["chunks_loaded"] = ooc ? os.cache.loads : ls.chunks;
+    j["bytes_read"] = ooc ? os.cache.bytes_read : ls.stored_bytes;
+    j["chunk_raw_bytes"] = ooc ? os.cache.raw_bytes_loaded : ls.raw_bytes;
+    j["cache_hit_rate"] = ooc ? nlohmann::json(os.cache.hit_rate()) : nlohmann::json(nullptr);
+    j["cache_evictions"] = ooc ? os.cache.evictions : 0;
+    j["peak_cache_bytes"] = ooc ? os.cache.peak_resident_bytes : ls.raw_bytes;
+    j["peak_resident_bytes"] = ooc ? os.peak_resident_bytes : ls.raw_bytes;
+    j["peak_rss_bytes"] = uint64_t(rtp::peak_rss_mib() * 1048576.0);
+    j["load_seconds"] = ooc ? os.load_seconds : ls.total_seconds;
+    j["load_read_seconds"] = ooc ? os.cache.load_seconds : ls.read_seconds;
+    j["load_check_seconds"] = ooc ? std::max(0.0, os.load_seconds - os.cache.load_seconds) : ls.check_seconds;
+    j["stage_seconds"] = {{"load", ooc ? os.load_seconds : ls.total_seconds},
+                          {"load_read", ooc ? os.cache.load_seconds : ls.read_seconds},
+                          {"load_check", ooc ? nlohmann::json(nullptr) : nlohmann::json(ls.check_seconds)},
+                          {"walk", ooc ? nlohmann::json(os.walk_seconds) : nlohmann::json(nullptr)},
+                          {"trace", ooc ? os.trace_seconds : secs},
+                          {"total", (ooc ? 0.0 : ls.total_seconds) + secs}};
     j.update(rtp::tools::json_stamp("rtpack-trace"));
     if (json) std::cout << j.dump(2) << "\n";
     else {
-      std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
-                   (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
-                   ls.check_seconds);
+      if (ooc)
+        std::fprintf(stderr,
+                     "out of core, budget %.1f MiB: %llu rounds, %llu chunks loaded (%.1f MiB read, %.1f MiB "
+                     "decompressed), cache hit rate %.1f%%, %llu evictions; peak cache %.1f MiB, peak resident %.1f MiB, "
+                     "peak RSS %.1f MiB; load %.3f s, walk %.3f s, trace %.3f s\n",
+                     double(budget) / 1048576.0, (unsigned long long)os.rounds, (unsigned long long)os.cache.loads,
+                     double(os.cache.bytes_read) / 1048576.0, double(os.cache.raw_bytes_loaded) / 1048576.0,
+                     100 * os.cache.hit_rate(), (unsigned long long)os.cache.evictions,
+                     double(os.cache.peak_resident_bytes) / 1048576.0, double(os.peak_resident_bytes) / 1048576.0,
+                     rtp::peak_rss_mib(), os.load_seconds, os.walk_seconds, os.trace_seconds);
+      else
+        std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
+                     (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
+                     ls.check_seconds);
       std::fprintf(stderr,
                    "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s); "
                    "batching-point visits %llu, culled %llu (%.1f%%, culling %s)\n",

@@ -40,6 +40,11 @@ class PackageReader {
   AlignedBytes read(size_t index) const;
   // Reads and checks the CRC only (no decompression).
   void verify(size_t index) const;
+  // The element count of section `type` of chunk toc()[index] (elements of `elem_size` bytes, inside
+  // the chunk's raw_size), or 0 when the chunk has no such section. Streams the chunk in 1 MiB pieces:
+  // the CRC covers all of it but only the chunk and section headers are decompressed, so a large
+  // resident table (the instance table) is counted without ever being held (chunk_prefix.cpp).
+  uint64_t section_count(size_t index, uint32_t type, uint32_t elem_size) const;
   // The offset of the first non-zero byte of [offset, offset + size) of the file, or kAllZero.
   static constexpr uint64_t kAllZero = ~uint64_t(0);
   uint64_t first_nonzero(uint64_t offset, uint64_t size) const;

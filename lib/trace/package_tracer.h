@@ -29,7 +29,7 @@ struct PackageTraceStats : TraceStats {
 // checks of check_chunks.h / voxel::check_dags that run on every chunk before any ray does.
 struct PackageLoadStats {
   double total_seconds = 0, read_seconds = 0, check_seconds = 0;
-  uint64_t chunks = 0, raw_bytes = 0;
+  uint64_t chunks = 0, raw_bytes = 0, stored_bytes = 0;  // stored: bytes read from the file
 };
 
 class PackageTracer {

@@ -1,0 +1,424 @@
+// The batched out-of-core tracer (Molenaar 2019 §4.1, §4.3); see out_of_core.h.
+#include "trace/out_of_core.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <numeric>
+
+#include "core/error.h"
+#include "formats/chunk.h"
+#include "formats/dag.h"
+#include "formats/top_level.h"
+#include "reader/check_chunks.h"
+#include "reader/chunk_io.h"
+#include "trace/dag_trace.h"
+#include "trace/top_level_walk.h"
+#include "trace/trace.h"
+
+namespace rtp {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+constexpr size_t kBlock = 64;
+std::string format_mib(uint64_t b) {
+  char t[32];
+  std::snprintf(t, sizeof t, "%.1f MiB", double(b) / 1048576.0);
+  return t;
+}  // rays traced together at one batching point (one kernel call)
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// What the tracer needs of the file beside the cache: chunk indices per batching point and segment.
+struct Layout {
+  std::vector<uint32_t> point_chunk;                  // TOC index of batching point p
+  std::vector<std::vector<uint32_t>> point_segments;  // segment ids point p needs
+  std::vector<uint32_t> segment_chunk;                // TOC index of mesh segment s (kNone: absent)
+};
+
+Layout read_layout(const PackageReader& r, const fmt::BatchingPointDesc* descs, uint64_t n_points, const uint32_t* refs,
+                   const std::string& label) {
+  Layout l;
+  const auto& toc = r.toc();
+  l.point_chunk.assign(n_points, kNone);
+  for (size_t i = 0; i < toc.size(); ++i) {
+    if (toc[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint) && toc[i].id < n_points && l.point_chunk[toc[i].id] == kNone)
+      l.point_chunk[toc[i].id] = uint32_t(i);
+    if (toc[i].kind == uint32_t(fmt::ChunkKind::kMeshSegment) && toc[i].id < toc.size()) {
+      if (l.segment_chunk.size() <= toc[i].id) l.segment_chunk.resize(toc[i].id + 1, kNone);
+      if (l.segment_chunk[toc[i].id] == kNone) l.segment_chunk[toc[i].id] = uint32_t(i);
+    }
+  }
+  l.point_segments.resize(n_points);
+  for (uint64_t p = 0; p < n_points; ++p) {
+    if (l.point_chunk[p] == kNone) fail_invalid(label + ": batching point " + std::to_string(p) + " has no chunk");
+    for (uint32_t k = 0; k < descs[p].segment_count; ++k) {
+      const uint32_t s = refs[descs[p].segment_first + k];
+      if (s >= l.segment_chunk.size() || l.segment_chunk[s] == kNone)
+        fail_invalid(label + ": batching point " + std::to_string(p) + " needs mesh segment " + std::to_string(s) +
+                     ", which the package does not hold");
+      l.point_segments[p].push_back(s);
+    }
+  }
+  return l;
+}
+
+uint64_t point_cost(const PackageReader& r, const Layout& l, uint64_t p) {
+  uint64_t c = r.toc()[l.point_chunk[p]].raw_size;
+  for (uint32_t s : l.point_segments[p]) c += r.toc()[l.segment_chunk[s]].raw_size;
+  return c;
+}
+
+// The resident part: top level, descriptors (with segment refs and DAG grids), DAG pool.
+struct Resident {
+  AlignedBytes top_bytes, desc_bytes, dag_bytes;
+  const fmt::TopNode* top = nullptr;
+  uint64_t top_count = 0, n_points = 0, n_instances = 0;
+  const fmt::DagGrid* grids = nullptr;
+  voxel::DagView dag;
+  Layout layout;
+  uint64_t bytes() const { return top_bytes.size() + desc_bytes.size() + dag_bytes.size(); }
+};
+
+const AlignedBytes& must_read(const PackageReader& r, fmt::ChunkKind kind, AlignedBytes& out) {
+  const int64_t i = r.find(kind, 0);
+  if (i < 0) fail_invalid(std::string("missing ") + chunk_kind_name(uint32_t(kind)) + " 0");
+  out = r.read(size_t(i));
+  return out;
+}
+
+Resident read_resident(const PackageReader& r) {
+  Resident s;
+  const auto& toc = r.toc();
+  const AlignedBytes& tb = must_read(r, fmt::ChunkKind::kTopLevelBvh, s.top_bytes);
+  const int64_t ti = r.find(fmt::ChunkKind::kTopLevelBvh, 0);
+  ChunkView tv(tb.data(), tb.size(), uint32_t(fmt::ChunkKind::kTopLevelBvh), chunk_label(toc[size_t(ti)], size_t(ti)));
+  s.top = tv.get<fmt::TopNode>(fmt::SectionType::kTopNodes, s.top_count, true);
+  const int64_t di = r.find(fmt::ChunkKind::kBatchingPoints, 0);
+  const AlignedBytes& db = must_read(r, fmt::ChunkKind::kBatchingPoints, s.desc_bytes);
+  ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), chunk_label(toc[size_t(di)], size_t(di)));
+  uint64_t n_refs = 0;
+  const auto* descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, s.n_points);
+  const uint32_t* refs = dv.get<uint32_t>(fmt::SectionType::kSegmentRefs, n_refs);
+  check_point_descs(descs, s.n_points, n_refs, dv.label());
+  check_top_level(s.top, s.top_count, s.n_points, tv.label());
+  s.layout = read_layout(r, descs, s.n_points, refs, dv.label());
+  uint64_t n_grids = 0;
+  s.grids = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, n_grids, false);
+  if (s.grids) {
+    if (n_grids != s.n_points)
+      fail_invalid(dv.label() + ": " + std::to_string(n_grids) + " culling grids for " + std::to_string(s.n_points) + " batching points");
+    const int64_t pi = r.find(fmt::ChunkKind::kDagPool, 0);
+    if (pi < 0) fail_invalid(dv.label() + ": culling grids but no DAG pool chunk");
+    const AlignedBytes& b = must_read(r, fmt::ChunkKind::kDagPool, s.dag_bytes);
+    ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), chunk_label(toc[size_t(pi)], size_t(pi)));
+    s.dag.words = v.get<uint32_t>(fmt::SectionType::kDagNodes, s.dag.word_count);
+    s.dag.leaves = v.get<uint64_t>(fmt::SectionType::kDagLeaves, s.dag.leaf_count);
+    const std::string e = voxel::check_dags(s.grids, n_grids, s.dag);
+    if (!e.empty()) fail_invalid(v.label() + ": culling DAG of " + e);
+  }
+  // The instance table only counted (global ids are checked against it), never held.
+  const int64_t ii = r.find(fmt::ChunkKind::kInstances, 0);
+  if (ii < 0) fail_invalid("missing instance table 0");
+  s.n_instances = r.section_count(size_t(ii), uint32_t(fmt::SectionType::kInstances), sizeof(fmt::InstanceRecord));
+  return s;
+}
+
+// A decoded batching point (valid while its chunk is resident) and a decoded mesh segment.
+template <int W, int B>
+struct PointSlot {
+  PointSections<W, B> s;
+  std::vector<MeshBvhView<W, B>> meshes;  // by local slot, rebuilt each round it is traced
+  SceneView<W, B> view;
+};
+template <int W, int B>
+struct SegmentSlot {
+  std::vector<std::pair<uint32_t, MeshBvhView<W, B>>> meshes;  // sorted by scene mesh id
+};
+
+template <int W, int B>
+class Batched final : public OutOfCoreTracer {
+ public:
+  Batched(const PackageReader& r, Resident res, uint64_t budget)
+      : r_(r), res_(std::move(res)), cache_(r, budget), points_(res_.n_points), segments_(res_.layout.segment_chunk.size()) {}
+
+  bool has_dags() const override { return res_.grids != nullptr; }
+
+  OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) override {
+    for (size_t i = 0; i < n; ++i) hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
+    return run(rays, n, o, [&](const SceneView<W, B>& view, const uint32_t* global_ids, const uint32_t* ids,
+                               const fmt::Ray* local, size_t k, std::vector<uint8_t>& done) {
+      fmt::Hit h[kBlock];
+      trace_closest<W, B>(view, local, h, k, o);
+      for (size_t j = 0; j < k; ++j) {
+        fmt::Hit& best = hits[ids[j]];
+        if (h[j].t < best.t) {  // strictly nearer: on a tie the earlier point (in walk order) keeps it
+          best = h[j];
+          best.instance = global_ids[h[j].instance];
+        }
+        done[j] = 0;
+      }
+    }, [&](size_t i) { return hits[i].t < kInf ? hits[i].t : rays[i].tfar; });
+  }
+
+  OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) override {
+    std::fill(occluded, occluded + n, uint8_t(0));
+    return run(rays, n, o, [&](const SceneView<W, B>& view, const uint32_t*, const uint32_t* ids, const fmt::Ray* local,
+                               size_t k, std::vector<uint8_t>& done) {
+      uint8_t occ[kBlock];
+      trace_any<W, B>(view, local, occ, k, o);
+      for (size_t j = 0; j < k; ++j) {
+        occluded[ids[j]] = occ[j];
+        done[j] = occ[j];
+      }
+    }, [&](size_t i) { return rays[i].tfar; });
+  }
+
+ private:
+  // One ray's walk to its next unculled batching point (kNone: finished). `tfar` is its current one.
+  uint32_t advance(const fmt::Ray& ray, float tfar, TopPosition& pos, float& tstart, bool cull, PackageTraceStats& st) const {
+    if (res_.top_count == 0) return kNone;
+    fmt::Ray cur = ray;
+    cur.tfar = tfar;
+    double inv[3];
+    top_inverse(cur, inv);
+    for (;;) {
+      const uint32_t p = top_next(res_.top, cur, inv, pos);
+      if (p == kTopNone) return kNone;
+      ++st.point_visits;
+      fmt::Ray local = cur;
+      if (cull && res_.grids && !voxel::dag_enter(res_.grids[p], res_.dag, local)) {
+        ++st.culled_visits;
+        continue;
+      }
+      tstart = local.tnear;
+      return p;
+    }
+  }
+
+  template <class TraceBlock, class CurrentTfar>
+  OutOfCoreStats run(const fmt::Ray* rays, size_t n, const PackageTraceOptions& o, TraceBlock&& trace_block,
+                     CurrentTfar&& current_tfar) {
+    const auto t_total = Clock::now();
+    if (n >= kNone) throw Error(ExitCode::kUsage, std::to_string(n) + " rays in one call: at most 2^32 - 2");
+    OutOfCoreStats st;
+    st.rays = n;
+    st.budget_bytes = cache_.budget();
+    st.fixed_bytes = res_.bytes();
+    const ChunkCacheStats cache_before = cache_.stats();
+    const bool cull = o.cull;
+    // Per ray: where it stands in the top level and where its walk in the waiting point starts.
+    std::vector<TopPosition> pos(n);
+    std::vector<float> tstart(n, 0.f);
+    std::vector<std::vector<uint32_t>> queue(res_.n_points);  // rays waiting at each batching point
+    using Moves = std::vector<std::pair<uint32_t, uint32_t>>;  // (point, ray)
+    tbb::enumerable_thread_specific<Moves> moves;
+    tbb::enumerable_thread_specific<PackageTraceStats> walk_stats;
+    auto enqueue_moves = [&] {
+      uint64_t queued = 0;
+      for (Moves& m : moves) {
+        for (const auto& [p, i] : m) queue[p].push_back(i);
+        m.clear();
+      }
+      uint64_t ray_bytes = n * (sizeof(TopPosition) + sizeof(float));
+      for (const auto& q : queue) ray_bytes += q.capacity() * sizeof(uint32_t), queued += q.size();
+      for (const Moves& m : moves) ray_bytes += m.capacity() * sizeof(Moves::value_type);
+      st.peak_ray_bytes = std::max(st.peak_ray_bytes, ray_bytes);
+      return queued;
+    };
+    auto t0 = Clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& rg) {
+      Moves& m = moves.local();
+      PackageTraceStats& ws = walk_stats.local();
+      for (size_t i = rg.begin(); i != rg.end(); ++i) {
+        if (!ray_is_valid(rays[i])) {
+          ++ws.invalid_rays;
+          continue;
+        }
+        const uint32_t p = advance(rays[i], rays[i].tfar, pos[i], tstart[i], cull, ws);
+        if (p != kNone) m.push_back({p, uint32_t(i)});
+      }
+    });
+    uint64_t waiting = enqueue_moves();
+    st.walk_seconds += seconds_since(t0);
+    std::vector<uint32_t> order(res_.n_points);
+    std::vector<uint8_t> in_round(r_.toc().size(), 0);  // chunks of the round being chosen
+    while (waiting > 0) {
+      ++st.rounds;
+      // Molenaar 2019 §4.3: the points with the most waiting rays first, as many as fit in the budget.
+      std::iota(order.begin(), order.end(), 0u);
+      std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return queue[a].size() > queue[b].size(); });
+      std::vector<uint32_t> chosen, chunks;
+      uint64_t bytes = 0;
+      for (uint32_t p : order) {
+        if (queue[p].empty()) break;
+        uint64_t add = in_round[res_.layout.point_chunk[p]] ? 0 : cache_.cost(res_.layout.point_chunk[p]);
+        for (uint32_t s : res_.layout.point_segments[p]) {
+          const uint32_t c = res_.layout.segment_chunk[s];
+          if (!in_round[c]) add += cache_.cost(c);  // a segment named twice counts twice: conservative
+        }
+        if (!chosen.empty() && bytes + add > cache_.budget()) continue;
+        chosen.push_back(p);
+        bytes += add;
+        auto take = [&](uint32_t c) {
+          if (!in_round[c]) in_round[c] = 1, chunks.push_back(c);
+        };
+        take(res_.layout.point_chunk[p]);
+        for (uint32_t s : res_.layout.point_segments[p]) take(res_.layout.segment_chunk[s]);
+      }
+      for (uint32_t c : chunks) in_round[c] = 0;
+      t0 = Clock::now();
+      cache_.acquire(chunks, [&](uint32_t index, const AlignedBytes& b) { decode(index, b); });
+      for (uint32_t p : chosen) bind_meshes(p);
+      st.load_seconds += seconds_since(t0);
+      // All threads on the chosen points' rays, kBlock at a time.
+      struct Work { uint32_t p, first, count; };
+      std::vector<Work> work;
+      for (uint32_t p : chosen)
+        for (size_t f = 0; f < queue[p].size(); f += kBlock)
+          work.push_back({p, uint32_t(f), uint32_t(std::min(kBlock, queue[p].size() - f))});
+      t0 = Clock::now();
+      tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
+        const Work& wk = work[w];
+        const PointSlot<W, B>& pt = points_[wk.p];
+        const uint32_t* ids = queue[wk.p].data() + wk.first;
+        fmt::Ray local[kBlock];
+        for (uint32_t j = 0; j < wk.count; ++j) {
+          local[j] = rays[ids[j]];
+          local[j].tnear = tstart[ids[j]];
+          local[j].tfar = current_tfar(ids[j]);
+        }
+        thread_local std::vector<uint8_t> done;
+        done.assign(kBlock, 0);
+        trace_block(pt.view, pt.s.global_ids, ids, local, wk.count, done);
+        Moves& m = moves.local();
+        PackageTraceStats& ws = walk_stats.local();
+        for (uint32_t j = 0; j < wk.count; ++j) {
+          if (done[j]) continue;  // any hit: occluded, the walk ends
+          const uint32_t i = ids[j];
+          const uint32_t next = advance(rays[i], current_tfar(i), pos[i], tstart[i], cull, ws);
+          if (next != kNone) m.push_back({next, i});
+        }
+      });
+      st.trace_seconds += seconds_since(t0);
+      for (uint32_t p : chosen) std::vector<uint32_t>().swap(queue[p]);
+      waiting = enqueue_moves();
+      cache_.release();
+      const uint64_t cache_now = cache_.stats().resident_bytes;
+      st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + cache_now + st.peak_ray_bytes);
+    }
+    for (const PackageTraceStats& ws : walk_stats) {
+      st.invalid_rays += ws.invalid_rays;
+      st.point_visits += ws.point_visits;
+      st.culled_visits += ws.culled_visits;
+    }
+    const ChunkCacheStats& c = cache_.stats();
+    st.cache = c;
+    st.cache.requests -= cache_before.requests;
+    st.cache.hits -= cache_before.hits;
+    st.cache.loads -= cache_before.loads;
+    st.cache.bytes_read -= cache_before.bytes_read;
+    st.cache.raw_bytes_loaded -= cache_before.raw_bytes_loaded;
+    st.cache.evictions -= cache_before.evictions;
+    st.cache.load_seconds -= cache_before.load_seconds;
+    st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + c.peak_resident_bytes + st.peak_ray_bytes);
+    st.total_seconds = seconds_since(t_total);
+    return st;
+  }
+
+  // Every chunk the cache loads passes the structural checks (check_chunks.h) before a ray reads it.
+  void decode(uint32_t index, const AlignedBytes& b) {
+    const fmt::TocEntry& e = r_.toc()[index];
+    const std::string label = chunk_label(e, index);
+    if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) {
+      ChunkView v(b.data(), b.size(), e.kind, label);
+      points_[e.id].s = decode_point<W, B>(v, res_.n_instances);
+      return;
+    }
+    ChunkView v(b.data(), b.size(), e.kind, label);
+    const GeometrySections<W, B> g = decode_segment<W, B>(v);
+    SegmentSlot<W, B>& seg = segments_[e.id];
+    seg.meshes.clear();
+    for (uint64_t k = 0; k < g.n_entries; ++k) {
+      const fmt::MeshEntry& m = g.entries[k];
+      seg.meshes.push_back({m.id, {g.nodes + m.node_first, g.blocks + m.block_first, m.root}});
+    }
+    std::stable_sort(seg.meshes.begin(), seg.meshes.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  }
+
+  // A point's mesh slots -> the views of its pieces and of the meshes in its own segments (resident now).
+  void bind_meshes(uint32_t p) {
+    PointSlot<W, B>& pt = points_[p];
+    const PointSections<W, B>& s = pt.s;
+    pt.meshes.resize(s.n_slots);
+    for (uint64_t k = 0; k < s.n_slots; ++k) {
+      if (s.slots[k] & fmt::kPieceBit) {
+        const fmt::MeshEntry& e = s.entries[s.slots[k] & ~fmt::kPieceBit];
+        pt.meshes[k] = {s.nodes + e.node_first, s.blocks + e.block_first, e.root};
+        continue;
+      }
+      const MeshBvhView<W, B>* found = nullptr;
+      for (uint32_t seg : res_.layout.point_segments[p]) {
+        const auto& ms = segments_[seg].meshes;
+        auto it = std::lower_bound(ms.begin(), ms.end(), s.slots[k], [](const auto& a, uint32_t id) { return a.first < id; });
+        if (it != ms.end() && it->first == s.slots[k]) {
+          found = &it->second;
+          break;
+        }
+      }
+      if (!found)
+        fail_invalid(chunk_label(r_.toc()[res_.layout.point_chunk[p]], res_.layout.point_chunk[p]) + ": mesh slot " +
+                     std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) + " is in none of the point's mesh segments");
+      pt.meshes[k] = *found;
+    }
+    pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data()};
+  }
+
+  const PackageReader& r_;
+  Resident res_;
+  ChunkCache cache_;
+  std::vector<PointSlot<W, B>> points_;
+  std::vector<SegmentSlot<W, B>> segments_;
+};
+
+}  // namespace
+
+uint64_t on_demand_bytes(const PackageReader& reader) {
+  uint64_t b = 0;
+  for (const fmt::TocEntry& e : reader.toc())
+    if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint) || e.kind == uint32_t(fmt::ChunkKind::kMeshSegment)) b += e.raw_size;
+  return b;
+}
+
+uint64_t minimum_budget(const PackageReader& reader) {
+  const Resident res = read_resident(reader);
+  uint64_t m = 0;
+  for (uint64_t p = 0; p < res.n_points; ++p) m = std::max(m, point_cost(reader, res.layout, p));
+  return m;
+}
+
+std::unique_ptr<OutOfCoreTracer> open_out_of_core(const PackageReader& r, uint64_t budget) {
+  Resident res = read_resident(r);
+  uint64_t need = 0, worst = 0;
+  for (uint64_t p = 0; p < res.n_points; ++p) {
+    const uint64_t c = point_cost(r, res.layout, p);
+    if (c > need) need = c, worst = p;
+  }
+  if (budget < need)
+    throw Error(ExitCode::kUsage, "memory budget " + std::to_string(budget) + " bytes is below the minimum of " +
+                                      std::to_string(need) + " bytes (" + format_mib(need) + "): batching point " +
+                                      std::to_string(worst) + " needs that much with its mesh segments");
+  const uint32_t w = r.header().bvh_width, b = r.header().leaf_width;
+  if (w == 4 && b == 4) return std::make_unique<Batched<4, 4>>(r, std::move(res), budget);
+  if (w == 8 && b == 8) return std::make_unique<Batched<8, 8>>(r, std::move(res), budget);
+  if (w == 16 && b == 16) return std::make_unique<Batched<16, 16>>(r, std::move(res), budget);
+  if (w == 8 && b == 4) return std::make_unique<Batched<8, 4>>(r, std::move(res), budget);
+  if (w == 16 && b == 8) return std::make_unique<Batched<16, 8>>(r, std::move(res), budget);
+  fail_invalid("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
+}
+
+}  // namespace rtp

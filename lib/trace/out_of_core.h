@@ -1,0 +1,57 @@
+#pragma once
+// The batched out-of-core package tracer (Molenaar 2019 §4.1 batching, §4.3 scheduling): the top
+// level, the batching-point descriptors and the DAG pool stay resident; batching points and mesh
+// segments come through a ChunkCache under a byte budget. A ray walks the top level (parent pointers,
+// no stack) to its next batching point, is culled there by the point's DAG or queued at it, and
+// resumes its walk after the point has been traced. Points are processed in rounds, most rays first,
+// as many as the budget holds at once, all threads tracing them. Each ray waits at one point at a time
+// and visits points in the in-core order, so the hits are byte-identical to load_package_in_core()'s
+// for every budget, thread count and ray order.
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "formats/ray_file.h"
+#include "reader/chunk_cache.h"
+#include "reader/container.h"
+#include "trace/package_tracer.h"
+
+namespace rtp {
+
+struct OutOfCoreStats : PackageTraceStats {
+  uint64_t rounds = 0;
+  ChunkCacheStats cache;            // chunks loaded, bytes read, hit rate, peak resident cache bytes
+  uint64_t budget_bytes = 0;        // the cache's budget
+  uint64_t fixed_bytes = 0;         // resident always: top level, descriptors, DAG pool
+  uint64_t peak_ray_bytes = 0;      // per-ray state and ray queues at their largest
+  uint64_t peak_resident_bytes = 0; // fixed + cache + rays, at the largest moment
+  double walk_seconds = 0;          // top-level walks and DAG culling (between rounds, in parallel)
+  double trace_seconds = 0;         // batching-point BVH traversal
+  double load_seconds = 0;          // reading, decompressing and checking chunks
+  double total_seconds = 0;
+};
+
+class OutOfCoreTracer {
+ public:
+  virtual ~OutOfCoreTracer() = default;
+  // Same results as PackageTracer::closest / any on all n rays at once (hits[i].instance = scene
+  // instance). Parallel inside (TBB). The cache persists across calls.
+  virtual OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) = 0;
+  virtual OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) = 0;
+  virtual bool has_dags() const = 0;
+};
+
+// The decompressed bytes of the chunks tracing reads on demand (batching points and mesh segments):
+// what "--memory-budget 10%" is a percentage of.
+uint64_t on_demand_bytes(const PackageReader& reader);
+// The smallest budget the tracer accepts: the largest batching point with its mesh segments.
+uint64_t minimum_budget(const PackageReader& reader);
+// "268435456", "256MiB", "1.5GiB", "64MB", "512KiB", "10%" (of on_demand) -> bytes; throws
+// Error(kUsage) naming the text when it is none of these.
+uint64_t parse_memory_budget(const std::string& text, uint64_t on_demand);
+
+// Reads and checks the resident chunks; throws Error(kUsage) when budget_bytes < minimum_budget(),
+// naming the minimum, and Error(kInputInvalid) naming a bad chunk (here or when a round loads it).
+std::unique_ptr<OutOfCoreTracer> open_out_of_core(const PackageReader& reader, uint64_t budget_bytes);
+
+}  // namespace rtp

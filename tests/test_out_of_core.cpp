@@ -1,0 +1,340 @@
+// The batched out-of-core tracer (issue 9): on every committed sample, converted in-process into a few
+// dozen batching points, the hits and occlusion answers are byte-identical to the in-core tracer's for
+// budgets of 100 %, 25 %, 10 % and 5 % of the on-demand bytes, 1 and 2 threads, and a shuffled ray
+// order; the cache's own accounting never exceeds the budget; a budget below the largest batching
+// point (with its mesh segments) is refused naming the minimum. Plus the pieces: the budget parser,
+// the streamed section count, and the parent pointers the stackless walk climbs.
+#include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "gltf_builder.h"
+#include "oracle/rays.h"
+#include "package/convert.h"
+#include "package_patch.h"
+#include "reader/chunk_io.h"
+#include "trace/out_of_core.h"
+#include "trace/package_tracer.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool sanitized() { return std::getenv("RTP_SANITIZED") != nullptr; }
+
+struct Sample {
+  std::string name, path;
+  int width;
+};
+
+std::vector<Sample> samples() {
+  const fs::path s = source_dir() / "samples";
+  return {{"gallery", (s / "generated/gallery.glb").string(), 8},
+          {"forest-small", (s / "generated/forest-small.glb").string(), 8},
+          {"far", (s / "generated/far.glb").string(), 4},
+          {"FlightHelmet", (s / "khronos/FlightHelmet/glTF/FlightHelmet.gltf").string(), 16},
+          {"BoomBox", (s / "khronos/BoomBox/glTF/BoomBox.gltf").string(), 8},
+          {"Lantern", (s / "khronos/Lantern/glTF/Lantern.gltf").string(), 8},
+          {"Suzanne", (s / "khronos/Suzanne/glTF/Suzanne.gltf").string(), 8}};
+}
+
+// Converts with about 40 batching points (so that a 5 % budget holds at least one of them where the
+// scene's unique geometry allows it) and returns the scene.
+Scene convert(const Sample& s, const std::string& out, int zstd = kDefaultZstdLevel, uint64_t points = 40) {
+  ConvertSettings cs;
+  cs.input = s.path;
+  cs.output = out;
+  cs.width = s.width;
+  cs.zstd_level = zstd;
+  {
+    ConvertSettings dry = cs;
+    dry.dry_run = true;
+    const ConvertOutcome o = convert_scene(dry);
+    cs.chunk_target = std::max<uint64_t>(64, o.scene.instanced_triangles() / points);
+  }
+  return convert_scene(cs).scene;
+}
+
+PackageTraceOptions options() {
+  PackageTraceOptions o;
+  o.isa = detect_isa();
+  return o;
+}
+
+std::vector<fmt::Ray> rays_for(const Scene& scene, const PackageTracer& in_core) {
+  RayGenOptions g;
+  g.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { in_core.closest(r, h, n, options()); };
+  std::vector<fmt::Ray> rays;
+  const size_t n = sanitized() ? 300 : 3000;
+  for (RayKind k : {RayKind::kPrimary, RayKind::kRandom, RayKind::kBounce, RayKind::kShadow, RayKind::kShort}) {
+    const auto r = generate_rays(scene, k, n, g);
+    rays.insert(rays.end(), r.begin(), r.end());
+  }
+  fmt::Ray nan_ray = rays.front();
+  nan_ray.dir[1] = std::nanf("");
+  rays.push_back(nan_ray);  // invalid: a miss on both paths
+  return rays;
+}
+
+// The first ray whose answers differ, or -1.
+template <class T>
+int64_t first_difference(const std::vector<T>& a, const std::vector<T>& b) {
+  for (size_t i = 0; i < a.size(); ++i)
+    if (std::memcmp(&a[i], &b[i], sizeof(T)) != 0) return int64_t(i);
+  return -1;
+}
+
+TEST(OutOfCore, ByteIdenticalToInCoreForEveryBudgetThreadCountAndOrder) {
+  const fs::path dir = temp_dir("ooc");
+  uint64_t runs = 0, runs_with_evictions = 0, runs_at_5 = 0, refused = 0;
+  for (const Sample& s : samples()) {
+    SCOPED_TRACE(s.name);
+    const std::string pkg = (dir / (s.name + ".rtp")).string();
+    const Scene scene = convert(s, pkg);
+    const PackageReader reader(pkg);
+    const auto in_core = load_package_in_core(reader);
+    const std::vector<fmt::Ray> rays = rays_for(scene, *in_core);
+    std::vector<fmt::Hit> want(rays.size());
+    std::vector<uint8_t> want_occ(rays.size());
+    in_core->closest(rays.data(), want.data(), rays.size(), options());
+    in_core->any(rays.data(), want_occ.data(), rays.size(), options());
+    const uint64_t on_demand = on_demand_bytes(reader), minimum = minimum_budget(reader);
+    ASSERT_GT(on_demand, 0u);
+    ASSERT_LE(minimum, on_demand);
+    for (const double fraction : {1.0, 0.25, 0.10, 0.05}) {
+      const uint64_t budget = uint64_t(std::ceil(double(on_demand) * fraction));
+      if (budget < minimum) {  // refused up front, naming the minimum
+        try {
+          open_out_of_core(reader, budget);
+          ADD_FAILURE() << "budget " << budget << " below the minimum " << minimum << " was accepted";
+        } catch (const Error& e) {
+          EXPECT_EQ(e.code(), ExitCode::kUsage);
+          EXPECT_NE(std::string(e.what()).find("minimum of " + std::to_string(minimum) + " bytes"), std::string::npos)
+              << e.what();
+        }
+        ++refused;
+        continue;
+      }
+      for (const int threads : {1, 2}) {
+        SCOPED_TRACE("budget " + std::to_string(fraction) + ", threads " + std::to_string(threads));
+        tbb::task_arena arena(threads);
+        arena.execute([&] {
+          const auto ooc = open_out_of_core(reader, budget);
+          std::vector<fmt::Hit> hits(rays.size());
+          const OutOfCoreStats st = ooc->closest(rays.data(), hits.data(), rays.size(), options());
+          EXPECT_EQ(first_difference(want, hits), -1);
+          EXPECT_LE(st.cache.peak_resident_bytes, budget);
+          EXPECT_EQ(st.invalid_rays, 1u);
+          EXPECT_GT(st.cache.loads, 0u);
+          std::vector<uint8_t> occ(rays.size());
+          const OutOfCoreStats sa = ooc->any(rays.data(), occ.data(), rays.size(), options());
+          EXPECT_EQ(first_difference(want_occ, occ), -1);
+          EXPECT_LE(sa.cache.peak_resident_bytes, budget);
+          ++runs;
+          runs_with_evictions += st.cache.evictions > 0;
+          runs_at_5 += fraction == 0.05;
+        });
+      }
+    }
+    // Another ray order (reversed in blocks, interleaved), at the smallest accepted budget.
+    std::vector<size_t> perm(rays.size());
+    std::iota(perm.begin(), perm.end(), size_t(0));
+    std::reverse(perm.begin(), perm.end());
+    for (size_t i = 0; i + 1 < perm.size(); i += 2) std::swap(perm[i], perm[i + 1]);
+    std::vector<fmt::Ray> shuffled(rays.size());
+    for (size_t i = 0; i < perm.size(); ++i) shuffled[i] = rays[perm[i]];
+    const auto ooc = open_out_of_core(reader, std::max(minimum, on_demand / 20));
+    std::vector<fmt::Hit> hits(rays.size()), back(rays.size());
+    ooc->closest(shuffled.data(), hits.data(), rays.size(), options());
+    for (size_t i = 0; i < perm.size(); ++i) back[perm[i]] = hits[i];
+    EXPECT_EQ(first_difference(want, back), -1);
+  }
+  std::printf("out of core: %llu runs byte-identical (%llu with evictions, %llu at a 5%% budget), %llu budgets refused "
+              "below the minimum\n",
+              (unsigned long long)runs, (unsigned long long)runs_with_evictions, (unsigned long long)runs_at_5,
+              (unsigned long long)refused);
+  // The test has teeth only if small budgets really ran and really evicted.
+  EXPECT_GT(runs_with_evictions, 0u);
+  EXPECT_GT(runs_at_5, 0u);
+  fs::remove_all(dir);
+}
+
+TEST(OutOfCore, CullingSavesLoadsAndKeepsTheHits) {
+  const fs::path dir = temp_dir("ooc_cull");
+  const Sample s = samples()[1];  // forest-small: culling DAGs with many empty regions
+  const std::string pkg = (dir / "forest.rtp").string();
+  const Scene scene = convert(s, pkg, kDefaultZstdLevel, 400);
+  const PackageReader reader(pkg);
+  const auto in_core = load_package_in_core(reader);
+  const std::vector<fmt::Ray> rays = rays_for(scene, *in_core);
+  PackageTraceOptions on = options(), off = options();
+  off.cull = false;
+  // A budget that evicts: every ray that reaches a point reloads it, unless the DAG culled the ray.
+  const uint64_t budget = std::max(minimum_budget(reader), on_demand_bytes(reader) / 10);
+  std::vector<fmt::Hit> a(rays.size()), b(rays.size());
+  const OutOfCoreStats sa = open_out_of_core(reader, budget)->closest(rays.data(), a.data(), rays.size(), on);
+  const OutOfCoreStats sb = open_out_of_core(reader, budget)->closest(rays.data(), b.data(), rays.size(), off);
+  EXPECT_EQ(first_difference(a, b), -1);
+  EXPECT_GT(sa.culled_visits, 0u);
+  EXPECT_EQ(sb.culled_visits, 0u);
+  EXPECT_EQ(sa.point_visits, sb.point_visits);
+  EXPECT_LT(sa.cache.loads, sb.cache.loads) << "culled rays must not make their batching points load";
+  EXPECT_LT(sa.cache.bytes_read, sb.cache.bytes_read);
+  std::printf("culling at a %llu-byte budget: %llu of %llu batching-point visits culled; %llu chunks loaded, %llu bytes "
+              "read (without culling %llu, %llu)\n",
+              (unsigned long long)budget, (unsigned long long)sa.culled_visits, (unsigned long long)sa.point_visits,
+              (unsigned long long)sa.cache.loads, (unsigned long long)sa.cache.bytes_read, (unsigned long long)sb.cache.loads,
+              (unsigned long long)sb.cache.bytes_read);
+  fs::remove_all(dir);
+}
+
+TEST(OutOfCore, BudgetTextIsParsedOrRefused) {
+  EXPECT_EQ(parse_memory_budget("268435456", 0), 268435456u);
+  EXPECT_EQ(parse_memory_budget("256MiB", 0), 256u << 20);
+  EXPECT_EQ(parse_memory_budget("1.5GiB", 0), 3u << 29);
+  EXPECT_EQ(parse_memory_budget("2GB", 0), 2000000000u);
+  EXPECT_EQ(parse_memory_budget("512KiB", 0), 512u << 10);
+  EXPECT_EQ(parse_memory_budget("10%", 1000), 100u);
+  EXPECT_EQ(parse_memory_budget("100%", 1001), 1001u);
+  EXPECT_EQ(parse_memory_budget("0.5%", 1000), 5u);
+  for (const char* bad : {"", "MiB", "-5MiB", "12 MiB", "5XB", "0", "0%", "101%", "1.2.3", ".5GB", "1e9", "0.1"}) {
+    SCOPED_TRACE(bad);
+    try {
+      parse_memory_budget(bad, 1000);
+      ADD_FAILURE() << "accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ExitCode::kUsage);
+      EXPECT_NE(std::string(e.what()).find(std::string("--memory-budget ") + bad + ":"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The instance table is counted, not held: the streamed count equals the count of the whole chunk,
+// compressed and stored, and a flipped byte anywhere in the chunk still fails its CRC.
+TEST(OutOfCore, SectionCountStreamsTheChunk) {
+  const fs::path dir = temp_dir("ooc_count");
+  for (const int zstd : {0, 6}) {
+    const std::string pkg = (dir / ("forest-" + std::to_string(zstd) + ".rtp")).string();
+    convert(samples()[1], pkg, zstd);
+    const PackageReader reader(pkg);
+    const int64_t i = reader.find(fmt::ChunkKind::kInstances, 0);
+    ASSERT_GE(i, 0);
+    const AlignedBytes b = reader.read(size_t(i));
+    const ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), "instance table");
+    uint64_t n = 0;
+    v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n);
+    EXPECT_GT(n, 1000u);
+    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstances), sizeof(fmt::InstanceRecord)), n);
+    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kGlobalIds), 4), 0u);  // absent: 0
+    EXPECT_THROW(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstances), 100), Error);  // wrong size
+  }
+  {  // the last stored byte flipped (CRC re-sealed nowhere): refused as corrupt
+    const std::string pkg = (dir / "forest-0.rtp").string();
+    std::string f = slurp(pkg);
+    const PackageReader reader(pkg);
+    const fmt::TocEntry e = reader.toc()[size_t(reader.find(fmt::ChunkKind::kInstances, 0))];
+    f[e.offset + e.stored_size - 1] ^= 0x40;
+    const std::string bad = (dir / "flipped.rtp").string();
+    std::ofstream(bad, std::ios::binary).write(f.data(), std::streamsize(f.size()));
+    try {
+      open_out_of_core(PackageReader(bad), uint64_t(1) << 40);
+      ADD_FAILURE() << "a corrupt instance table was accepted";
+    } catch (const Error& ex) {
+      EXPECT_NE(std::string(ex.what()).find("instance table 0"), std::string::npos) << ex.what();
+      EXPECT_NE(std::string(ex.what()).find("checksum mismatch"), std::string::npos) << ex.what();
+    }
+  }
+  fs::remove_all(dir);
+}
+
+// A corrupt batching point is found when the cache loads it (the structural checks of check_chunks.h
+// run on every load), named, and nothing is returned.
+TEST(OutOfCore, ABadBatchingPointIsRefusedWhenLoaded) {
+  const fs::path dir = temp_dir("ooc_bad");
+  const std::string pkg = (dir / "forest.rtp").string();
+  const Scene scene = convert(samples()[1], pkg, 0);
+  size_t index = 0;
+  std::string label;
+  {
+    const PackageReader reader(pkg);
+    index = size_t(reader.find(fmt::ChunkKind::kBatchingPoint, 3));
+    label = chunk_label(reader.toc()[index], index);
+  }
+  patch_chunk(pkg, index, [](uint8_t* chunk, size_t) {
+    fmt::SectionEntry* se = section_entry(chunk, fmt::SectionType::kGlobalIds);
+    ASSERT_NE(se, nullptr);
+    uint32_t* ids = reinterpret_cast<uint32_t*>(chunk + se->offset);
+    ids[0] = 0x7FFFFFFF;  // a scene instance far out of range
+  });
+  const PackageReader reader(pkg);
+  const auto ooc = open_out_of_core(reader, on_demand_bytes(reader));  // resident chunks are fine
+  // Every batching point's box centre as an origin, culling off: every point is queued and loaded.
+  const AlignedBytes db = reader.read(size_t(reader.find(fmt::ChunkKind::kBatchingPoints, 0)));
+  const ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), "descriptors");
+  uint64_t n = 0;
+  const auto* d = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n);
+  std::vector<fmt::Ray> rays;
+  for (uint64_t p = 0; p < n; ++p)
+    rays.push_back({{(d[p].lo[0] + d[p].hi[0]) / 2, (d[p].lo[1] + d[p].hi[1]) / 2, (d[p].lo[2] + d[p].hi[2]) / 2}, 0,
+                    {0.3f, 1, 0.2f}, 1e30f});
+  std::vector<fmt::Hit> hits(rays.size());
+  PackageTraceOptions o = options();
+  o.cull = false;
+  try {
+    ooc->closest(rays.data(), hits.data(), rays.size(), o);
+    ADD_FAILURE() << "the bad batching point was traced";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ExitCode::kInputInvalid);
+    EXPECT_NE(std::string(e.what()).find(label), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("global id"), std::string::npos) << e.what();
+  }
+  (void)scene;
+  fs::remove_all(dir);
+}
+
+// The walk climbs parent pointers, so they are part of the structural check of the top level.
+TEST(OutOfCore, TopLevelParentPointersAreChecked) {
+  const fs::path dir = temp_dir("ooc_parent");
+  const std::string pkg = (dir / "forest.rtp").string();
+  convert(samples()[1], pkg, 0);
+  size_t index = 0;
+  {
+    const PackageReader reader(pkg);
+    index = size_t(reader.find(fmt::ChunkKind::kTopLevelBvh, 0));
+  }
+  uint32_t child = 0;
+  patch_chunk(pkg, index, [&](uint8_t* chunk, size_t) {
+    fmt::SectionEntry* se = section_entry(chunk, fmt::SectionType::kTopNodes);
+    auto* top = reinterpret_cast<fmt::TopNode*>(chunk + se->offset);
+    for (uint64_t k = 0; k < se->count; ++k)
+      for (int l = 0; l < 4; ++l)
+        if (top[k].child[l] != fmt::TopNode::kEmpty && !(top[k].child[l] & fmt::TopNode::kLeafBit) && child == 0) {
+          child = top[k].child[l];
+          top[child].slot = (top[child].slot + 1) % 4;  // the lane that names it no longer matches
+        }
+    ASSERT_NE(child, 0u) << "no inner top-level node to edit";
+  });
+  const PackageReader reader(pkg);
+  for (int path = 0; path < 2; ++path) {
+    try {
+      if (path == 0) load_package_in_core(reader);
+      else open_out_of_core(reader, on_demand_bytes(reader));
+      ADD_FAILURE() << "accepted a wrong parent slot";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("child " + std::to_string(child) + " names parent"), std::string::npos) << e.what();
+    }
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rtp::test
