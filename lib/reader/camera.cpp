@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/json_checked.h"
 #include "reader/chunk_io.h"
+#include "reader/metadata.h"
 
 namespace rtp {
 
@@ -22,15 +23,7 @@ struct Metadata {
 
 Metadata read_cameras(const PackageReader& r) {
   Metadata md;
-  const int64_t mi = r.find(fmt::ChunkKind::kMetadata, 0);
-  if (mi < 0) return md;
-  const AlignedBytes b = r.read(size_t(mi));
-  ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMetadata), chunk_label(r.toc()[size_t(mi)], size_t(mi)));
-  const auto text = v.copy<uint8_t>(fmt::SectionType::kJson);
-  md.label = v.label();
-  jsonc::check_depth(std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), md.label + ": metadata ");
-  auto meta = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
-  if (meta.is_discarded() || !meta.is_object()) fail_invalid(md.label + ": metadata is not a JSON object");
+  const nlohmann::json meta = read_metadata(r, &md.label);
   if (const nlohmann::json* cams = jsonc::find(meta, "cameras")) {
     if (!cams->is_array()) fail_invalid(md.label + ": /cameras: not an array");
     md.cameras = *cams;

@@ -1,0 +1,188 @@
+// rtpack-validate and rtpack-trace --memory-budget as a user runs them (subprocesses): validation passes
+// on every committed sample against Embree on the source and against the in-core tracer, fails (exit 3,
+// naming rays) on a package with one wrong triangle re-sealed so that every checksum passes, and refuses
+// bad usage clearly; rtpack-trace writes the same hit bytes in and out of core and reports the same keys.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "formats/bvh_layout.h"
+#include "gltf_builder.h"
+#include "package/convert.h"
+#include "package_patch.h"
+#include "reader/camera.h"
+#include "reader/chunk_io.h"
+#include "reader/container.h"
+#include "trace/package_tracer.h"
+#include "tool_run.h"
+
+namespace rtp::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool sanitized() { return std::getenv("RTP_SANITIZED") != nullptr; }
+std::string ray_count() { return sanitized() ? "300" : "3000"; }
+
+void convert_to(const std::string& in, const std::string& out, uint64_t points, int zstd = kDefaultZstdLevel) {
+  ConvertSettings cs;
+  cs.input = in;
+  cs.output = out;
+  cs.zstd_level = zstd;
+  ConvertSettings dry = cs;
+  dry.dry_run = true;
+  cs.chunk_target = std::max<uint64_t>(64, convert_scene(dry).scene.instanced_triangles() / points);
+  convert_scene(cs);
+}
+
+TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
+  const fs::path dir = temp_dir("validate");
+  const fs::path s = source_dir() / "samples";
+  for (const fs::path& src : {s / "generated/gallery.glb", s / "generated/forest-small.glb", s / "generated/far.glb",
+                              s / "khronos/FlightHelmet/glTF/FlightHelmet.gltf", s / "khronos/BoomBox/glTF/BoomBox.gltf",
+                              s / "khronos/Lantern/glTF/Lantern.gltf", s / "khronos/Suzanne/glTF/Suzanne.gltf"}) {
+    SCOPED_TRACE(src.string());
+    const std::string pkg = (dir / (src.stem().string() + ".rtp")).string();
+    convert_to(src.string(), pkg, 30);
+    const ToolResult a = run_tool("rtpack-validate", {pkg, "--source", src.string(), "--rays", ray_count(), "--json"}, dir, {}, 300);
+    ASSERT_EQ(a.code, 0) << a.out << a.err;
+    const auto j = nlohmann::json::parse(a.out);
+    EXPECT_TRUE(j["ok"].get<bool>());
+    EXPECT_EQ(j["reference"], "embree");
+    ASSERT_EQ(j["kinds"].size(), 6u);
+    for (const auto& k : j["kinds"]) {
+      EXPECT_EQ(k["failures"], 0) << k.dump();
+      EXPECT_GT(k["rays"].get<uint64_t>(), 0u) << k.dump();
+    }
+    EXPECT_LE(j["out_of_core"]["peak_cache_bytes"].get<uint64_t>(), j["out_of_core"]["memory_budget"].get<uint64_t>());
+    const ToolResult b = run_tool("rtpack-validate", {pkg, "--rays", ray_count()}, dir, {}, 300);
+    EXPECT_EQ(b.code, 0) << b.out << b.err;
+    EXPECT_NE(b.out.find("ok: every answer agrees"), std::string::npos) << b.out;
+  }
+  fs::remove_all(dir);
+}
+
+// One triangle collapsed to a point: the triangle that most of the camera's primary rays hit, in the mesh
+// segment that stores its (instanced) mesh, every lane that holds it; the chunk re-sealed, so container and
+// structural checks pass. Embree on the source disagrees on the rays through it.
+TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
+  const fs::path dir = temp_dir("validate_bad");
+  const std::string src = (source_dir() / "samples/generated/gallery.glb").string();
+  const std::string pkg = (dir / "gallery.rtp").string();
+  convert_to(src, pkg, 8, 0);
+  const ToolResult good = run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+  ASSERT_EQ(good.code, 0) << good.out << good.err;
+  ConvertSettings dry;
+  dry.input = src;
+  dry.dry_run = true;
+  const Scene scene = convert_scene(dry).scene;
+  size_t index = 0;
+  uint32_t mesh = 0, prim = 0, B = 0;
+  {
+    const PackageReader r(pkg);
+    B = r.header().leaf_width;
+    const auto tracer = load_package_in_core(r);
+    const CameraRays cam = camera_rays(r, 160, 120);
+    std::vector<fmt::Hit> hits(cam.rays.size());
+    tracer->closest(cam.rays.data(), hits.data(), hits.size(), {});
+    std::map<std::pair<uint32_t, uint32_t>, int> count;
+    for (const fmt::Hit& h : hits)
+      if (h.t < INFINITY) ++count[{scene.instances[h.instance].mesh, h.prim}];
+    ASSERT_FALSE(count.empty());
+    const auto most = std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    mesh = most->first.first, prim = most->first.second;
+    const AlignedBytes mb = r.read(size_t(r.find(fmt::ChunkKind::kMeshes, 0)));
+    const ChunkView mv(mb.data(), mb.size(), uint32_t(fmt::ChunkKind::kMeshes), "mesh table");
+    uint64_t n = 0;
+    const uint32_t segment = mv.get<fmt::MeshInfo>(fmt::SectionType::kMeshTable, n)[mesh].segment;
+    ASSERT_NE(segment, 0xFFFFFFFFu) << "gallery's meshes are instanced: in mesh segments";
+    index = size_t(r.find(fmt::ChunkKind::kMeshSegment, segment));
+  }
+  uint64_t collapsed = 0;
+  patch_chunk(pkg, index, [&](uint8_t* chunk, size_t) {
+    const fmt::SectionEntry* blocks = section_entry(chunk, fmt::SectionType::kBlocks);
+    const fmt::SectionEntry* entries = section_entry(chunk, fmt::SectionType::kMeshEntries);
+    ASSERT_TRUE(blocks && entries);
+    for (uint64_t e = 0; e < entries->count; ++e) {
+      const auto* me = reinterpret_cast<const fmt::MeshEntry*>(chunk + entries->offset) + e;
+      if (me->id != mesh) continue;
+      for (uint64_t b = me->block_first; b < uint64_t(me->block_first) + me->block_count; ++b) {
+        float* f = reinterpret_cast<float*>(chunk + blocks->offset + b * blocks->elem_size);
+        const uint32_t* prims = reinterpret_cast<const uint32_t*>(f + 9 * B);
+        for (uint32_t l = 0; l < B; ++l)
+          if (prims[l] == prim) {
+            for (int a = 0; a < 3; ++a) f[(3 + a) * B + l] = f[(6 + a) * B + l] = f[a * B + l];  // v1 = v2 = v0
+            ++collapsed;
+          }
+      }
+    }
+  });
+  ASSERT_GT(collapsed, 0u);
+  const ToolResult bad = run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+  EXPECT_EQ(bad.code, 3) << bad.out << bad.err;
+  EXPECT_NE(bad.out.find("FAIL primary ray "), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("FAILED: some answers are wrong"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.err.find("rays answered wrongly"), std::string::npos) << bad.err;
+  fs::remove_all(dir);
+}
+
+TEST(ValidateTool, UsageErrorsAreClear) {
+  const fs::path dir = temp_dir("validate_usage");
+  const fs::path s = source_dir() / "samples";
+  const std::string pkg = (dir / "gallery.rtp").string();
+  convert_to((s / "generated/gallery.glb").string(), pkg, 8);
+  const ToolResult kind = run_tool("rtpack-validate", {pkg, "--kinds", "primary,sideways"}, dir);
+  EXPECT_EQ(kind.code, 1);
+  EXPECT_NE(kind.err.find("'sideways' is not a ray kind"), std::string::npos) << kind.err;
+  const ToolResult other = run_tool("rtpack-validate", {pkg, "--source", (s / "khronos/Suzanne/glTF/Suzanne.gltf").string()}, dir);
+  EXPECT_EQ(other.code, 1);
+  EXPECT_NE(other.err.find("is not the scene of this package"), std::string::npos) << other.err;
+  const ToolResult small = run_tool("rtpack-validate", {pkg, "--memory-budget", "1KiB"}, dir);
+  EXPECT_EQ(small.code, 1);
+  EXPECT_NE(small.err.find("below the minimum of"), std::string::npos) << small.err;
+  const ToolResult unit = run_tool("rtpack-validate", {pkg, "--memory-budget", "12 parsecs"}, dir);
+  EXPECT_EQ(unit.code, 1);
+  EXPECT_NE(unit.err.find("--memory-budget 12 parsecs"), std::string::npos) << unit.err;
+  fs::remove_all(dir);
+}
+
+// rtpack-trace: --memory-budget gives the in-core hit bytes; --json has the same keys on both paths.
+TEST(TraceOutOfCore, SameHitsAndTheSameJsonKeys) {
+  const fs::path dir = temp_dir("trace_ooc");
+  const std::string pkg = (dir / "forest.rtp").string();
+  convert_to((source_dir() / "samples/generated/forest-small.glb").string(), pkg, 60);
+  const std::string rays = (dir / "rays.bin").string();
+  const ToolResult in = run_tool("rtpack-trace", {pkg, "--make-camera-rays", "200x150", "--rays", rays, "--hits",
+                                                  (dir / "in.bin").string(), "--json"}, dir);
+  ASSERT_EQ(in.code, 0) << in.err;
+  const auto ji = nlohmann::json::parse(in.out);
+  for (const char* budget : {"100%", "10%", "5%"}) {
+    SCOPED_TRACE(budget);
+    const ToolResult out = run_tool("rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "out.bin").string(),
+                                                     "--memory-budget", budget, "--json"}, dir);
+    if (out.code == 1) {  // below this package's minimum: said so, nothing written
+      EXPECT_NE(out.out.find("below the minimum of"), std::string::npos) << out.out;
+      EXPECT_FALSE(fs::exists(dir / "out.bin"));
+      continue;
+    }
+    ASSERT_EQ(out.code, 0) << out.err;
+    EXPECT_EQ(slurp_file(dir / "in.bin"), slurp_file(dir / "out.bin"));
+    const auto jo = nlohmann::json::parse(out.out);
+    EXPECT_EQ(jo["mode"], "out of core");
+    EXPECT_LE(jo["peak_cache_bytes"].get<uint64_t>(), jo["memory_budget"].get<uint64_t>());
+    for (const auto& [key, value] : ji.items()) EXPECT_TRUE(jo.contains(key)) << key;
+    for (const auto& [key, value] : jo.items()) EXPECT_TRUE(ji.contains(key)) << key;
+    EXPECT_EQ(jo["hits"], ji["hits"]);
+    fs::remove(dir / "out.bin");
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rtp::test

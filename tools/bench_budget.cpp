@@ -1,0 +1,130 @@
+// rtpack-bench --out-of-core: time and bytes read against the memory budget (Molenaar 2019 §5.3).
+#include "bench_budget.h"
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "bench_convert.h"
+#include "core/error.h"
+#include "core/progress.h"
+#include "package/convert.h"
+#include "reader/container.h"
+#include "tool_version.h"
+#include "trace/out_of_core.h"
+#include "trace/package_tracer.h"
+
+namespace rtp::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+int run_budget_bench(const BudgetBenchConfig& cfg) {
+  std::unique_ptr<tbb::global_control> limit;
+  if (cfg.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, cfg.threads);
+  FILE* out = cfg.json ? stderr : stdout;
+  // The scene for the rays (bounce rays need its normals), prepared as the converter did by default.
+  ConvertSettings cs;
+  cs.input = cfg.scene_path;
+  cs.allow_paths = cfg.allow_paths;
+  cs.dry_run = true;
+  std::fprintf(stderr, "importing %s for the rays ...\n", cfg.scene_path.c_str());
+  const Scene scene = convert_scene(cs).scene;
+  const PackageReader reader(cfg.package, cfg.direct_io);
+  if (reader.header().instanced_triangles != scene.instanced_triangles())
+    throw Error(ExitCode::kUsage, "the package " + cfg.package + " was not converted from " + cfg.scene_path);
+  auto t0 = Clock::now();
+  const auto in_core = load_package_in_core(reader);
+  const double in_core_load = since(t0);
+  PackageTraceOptions opt;
+  opt.isa = cfg.isa;
+  auto trace_in_core = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& b) {
+      in_core->closest(r + b.begin(), h + b.begin(), b.size(), opt);
+    });
+  };
+  const uint64_t on_demand = on_demand_bytes(reader), minimum = minimum_budget(reader);
+  std::fprintf(out, "%s: %.1f MiB on demand (batching points and mesh segments), minimum budget %.1f MiB, %s, %d threads%s\n",
+               cfg.package.c_str(), double(on_demand) / 1048576.0, double(minimum) / 1048576.0, isa_name(cfg.isa),
+               cfg.threads > 0 ? cfg.threads : int(tbb::info::default_concurrency()), reader.direct_io() ? ", O_DIRECT" : "");
+  std::fprintf(out, "%-8s %7s %6s %10s %8s %10s %9s %9s %8s %10s %10s\n", "kind", "budget", "cull", "budget MiB", "rounds",
+               "chunks", "read MiB", "hit rate", "seconds", "x in-core", "peak MiB");
+  nlohmann::json records = nlohmann::json::array();
+  bool all_identical = true;
+  for (RayKind kind : cfg.kinds) {
+    RayGenOptions g;
+    g.seed = cfg.seed;
+    g.closest = trace_in_core;
+    const std::vector<fmt::Ray> rays = generate_rays(scene, kind, cfg.rays, g);
+    std::vector<fmt::Hit> want(rays.size()), got(rays.size());
+    trace_in_core(rays.data(), want.data(), rays.size());  // warm
+    t0 = Clock::now();
+    trace_in_core(rays.data(), want.data(), rays.size());
+    const double in_core_s = since(t0);
+    std::fprintf(out, "%-8s %7s %6s %10s %8s %10s %9s %9s %8.3f %10s %10.1f  (in core; load %.2f s not counted)\n",
+                 ray_kind_name(kind), "-", "on", "-", "-", "-", "-", "-", in_core_s, "1.00", double(in_core->load_stats().raw_bytes) / 1048576.0,
+                 in_core_load);
+    records.push_back({{"kind", ray_kind_name(kind)}, {"mode", "in_core"}, {"rays", rays.size()}, {"seconds", in_core_s},
+                       {"load_seconds", in_core_load}, {"resident_bytes", in_core->load_stats().raw_bytes}});
+    for (double pct : cfg.budgets) {
+      const uint64_t budget = uint64_t(std::ceil(double(on_demand) * pct / 100.0));
+      for (bool cull : {true, false}) {
+        if (!cull && !in_core->has_dags()) continue;
+        if (budget < minimum) {
+          std::fprintf(out, "%-8s %6.0f%% %6s below the minimum budget: skipped\n", ray_kind_name(kind), pct, cull ? "on" : "off");
+          continue;
+        }
+        PackageTraceOptions o = opt;
+        o.cull = cull;
+        const auto ooc = open_out_of_core(reader, budget);
+        const OutOfCoreStats st = ooc->closest(rays.data(), got.data(), rays.size(), o);
+        const bool same = std::memcmp(want.data(), got.data(), want.size() * sizeof(fmt::Hit)) == 0;
+        all_identical &= same;
+        std::fprintf(out, "%-8s %6.0f%% %6s %10.1f %8llu %10llu %9.1f %8.1f%% %8.3f %10.2f %10.1f%s\n", ray_kind_name(kind), pct,
+                     cull ? "on" : "off", double(budget) / 1048576.0, (unsigned long long)st.rounds,
+                     (unsigned long long)st.cache.loads, double(st.cache.bytes_read) / 1048576.0, 100 * st.cache.hit_rate(),
+                     st.total_seconds, st.total_seconds / in_core_s, double(st.peak_resident_bytes) / 1048576.0,
+                     same ? "" : "  HITS DIFFER FROM IN CORE");
+        records.push_back({{"kind", ray_kind_name(kind)}, {"mode", "out_of_core"}, {"budget_percent", pct}, {"budget_bytes", budget},
+                           {"cull", cull}, {"rays", rays.size()}, {"rounds", st.rounds}, {"chunks_loaded", st.cache.loads},
+                           {"bytes_read", st.cache.bytes_read}, {"raw_bytes_loaded", st.cache.raw_bytes_loaded},
+                           {"cache_hit_rate", st.cache.hit_rate()}, {"seconds", st.total_seconds},
+                           {"load_seconds", st.load_seconds}, {"walk_seconds", st.walk_seconds},
+                           {"trace_seconds", st.trace_seconds}, {"vs_in_core", st.total_seconds / in_core_s},
+                           {"peak_cache_bytes", st.cache.peak_resident_bytes}, {"peak_resident_bytes", st.peak_resident_bytes},
+                           {"identical_to_in_core", same}});
+      }
+    }
+  }
+  if (cfg.json) {
+    nlohmann::json j = rtp::tools::json_stamp("rtpack-bench");
+    j["package"] = cfg.package;
+    j["scene"] = cfg.scene_path;
+    j["on_demand_bytes"] = on_demand;
+    j["minimum_budget"] = minimum;
+    j["threads"] = cfg.threads;
+    j["cpu"] = cpu_model();
+    j["direct_io"] = reader.direct_io();
+    j["peak_rss_bytes"] = uint64_t(peak_rss_mib() * 1048576.0);
+    j["records"] = records;
+    std::cout << j.dump(2) << "\n";
+  }
+  if (!all_identical) {
+    std::fprintf(stderr, "error: some out-of-core hits differ from the in-core hits\n");
+    return int(ExitCode::kInternal);
+  }
+  return 0;
+}
+
+}  // namespace rtp::bench

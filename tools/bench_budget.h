@@ -1,0 +1,32 @@
+#pragma once
+// rtpack-bench SCENE --out-of-core PKG: the batched out-of-core tracer against the in-core tracer on the
+// same rays, same run: time, bytes read and chunks loaded per memory budget, with and without DAG
+// culling (Molenaar 2019 §5.3: time and I/O against the cache size). Every out-of-core answer is
+// checked byte for byte against the in-core one.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "oracle/rays.h"
+#include "trace/trace.h"
+
+namespace rtp::bench {
+
+struct BudgetBenchConfig {
+  std::string scene_path, package;
+  std::vector<std::string> allow_paths;
+  std::vector<double> budgets = {100, 50, 25, 10, 5};  // percent of the package's on-demand bytes
+  std::vector<RayKind> kinds = {RayKind::kBounce};
+  size_t rays = 1 << 18;
+  uint64_t seed = 1;
+  int threads = 0;  // 0: all
+  bool direct_io = false;
+  bool json = false;
+  Isa isa = Isa::kScalar;
+};
+
+// Prints the table (stdout, or stderr with --json, the records then on stdout). Returns the exit code:
+// kInternal when some out-of-core answer differs from the in-core one.
+int run_budget_bench(const BudgetBenchConfig& cfg);
+
+}  // namespace rtp::bench

@@ -1,0 +1,313 @@
+// rtpack-validate: is this package right? Traces test rays of every kind through the package out of
+// core (under a memory budget, lib/trace/out_of_core.h) and checks every answer, ray by ray, against an
+// independent reference: Embree ROBUST built from the source glTF (--source; prepared with the options
+// the package records, TESTING.md verdicts: agree / edge tie / precision tie / failure), or without
+// --source the in-core tracer (answers must be byte-identical). Exit 3 when any ray fails.
+#include <tbb/global_control.h>
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/progress.h"
+#include "core/utf8.h"
+#include "oracle/compare.h"
+#include "oracle/embree_oracle.h"
+#include "oracle/rays.h"
+#include "package/convert.h"
+#include "reader/camera.h"
+#include "reader/metadata.h"
+#include "trace/out_of_core.h"
+#include "trace/package_tracer.h"
+#include "tool_version.h"
+
+namespace {
+
+using rtp::fmt::Hit;
+using rtp::fmt::Ray;
+
+struct KindResult {
+  std::string kind;
+  rtp::CompareReport closest;
+  rtp::AnyHitReport any;
+  uint64_t any_differ = 0;  // without --source: occlusion bytes that differ from in core
+};
+
+uint64_t mix(uint64_t x) {  // splitmix64: deterministic rays, the same on every machine
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+double unit(uint64_t seed, uint64_t i, int k) { return double(mix(seed * 0x100000001B3ull + i * 8 + uint64_t(k)) >> 11) * 0x1.0p-53; }
+
+// Rays from the package alone (no --source): primary from its camera, random through its bounds, shadow
+// rays from the in-core primary hits toward a light above the bounds.
+std::vector<Ray> package_rays(const rtp::PackageReader& reader, const rtp::PackageTracer& in_core, const std::string& kind,
+                              size_t n, uint64_t seed) {
+  const auto& h = reader.header();
+  double c[3], r = 0;
+  for (int k = 0; k < 3; ++k) c[k] = 0.5 * (double(h.bounds_lo[k]) + double(h.bounds_hi[k]));
+  for (int k = 0; k < 3; ++k) r += std::pow(double(h.bounds_hi[k]) - double(h.bounds_lo[k]), 2);
+  r = std::max(std::sqrt(r) / 2, 1e-3);
+  std::vector<Ray> rays;
+  if (kind == "primary" || kind == "shadow") {
+    const int w = std::max(1, int(std::ceil(std::sqrt(double(n) * 1.5)))), ht = std::max(1, int((n + size_t(w) - 1) / size_t(w)));
+    rays = rtp::camera_rays(reader, w, ht).rays;
+    rays.resize(std::min(rays.size(), n));
+    if (kind == "primary") return rays;
+    std::vector<Hit> hits(rays.size());
+    in_core.closest(rays.data(), hits.data(), rays.size(), {});
+    const double light[3] = {c[0] + 0.3 * r, c[1] + 1.2 * r, c[2] + 0.2 * r};
+    std::vector<Ray> out;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      if (!(hits[i].t < INFINITY)) continue;
+      Ray s{};
+      double m = 1;
+      for (int k = 0; k < 3; ++k) m = std::max(m, std::fabs(rays[i].org[k] + double(hits[i].t) * rays[i].dir[k]));
+      for (int k = 0; k < 3; ++k) {
+        const double p = rays[i].org[k] + double(hits[i].t) * rays[i].dir[k] - 1e-5 * m * rays[i].dir[k];
+        s.org[k] = float(p);
+        s.dir[k] = float(light[k] - p);
+      }
+      s.tnear = 0;
+      s.tfar = 0.999f;
+      out.push_back(s);
+    }
+    return out;
+  }
+  for (size_t i = 0; i < n; ++i) {  // random: from a sphere of radius 1.5 r to a point inside the bounds
+    Ray ray{};
+    const double z = 2 * unit(seed, i, 0) - 1, phi = 2 * M_PI * unit(seed, i, 1), s = std::sqrt(1 - z * z);
+    const double o[3] = {c[0] + 1.5 * r * s * std::cos(phi), c[1] + 1.5 * r * s * std::sin(phi), c[2] + 1.5 * r * z};
+    for (int k = 0; k < 3; ++k) {
+      const double t = double(h.bounds_lo[k]) + (double(h.bounds_hi[k]) - double(h.bounds_lo[k])) * unit(seed, i, 2 + k);
+      ray.org[k] = float(o[k]);
+      ray.dir[k] = float(t - o[k]);
+    }
+    ray.tnear = 0;
+    ray.tfar = INFINITY;
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+// The scene as the converter prepared it: the source through rtpack-convert's own import and
+// preparation (a dry run) with the options the package records.
+rtp::Scene source_scene(const rtp::PackageReader& reader, const std::string& source, const std::vector<std::string>& allow) {
+  std::string label;
+  const nlohmann::json meta = rtp::read_metadata(reader, &label);
+  const nlohmann::json opt = meta.contains("options") && meta["options"].is_object() ? meta["options"] : nlohmann::json::object();
+  rtp::ConvertSettings s;
+  s.input = source;
+  s.allow_paths = allow;
+  s.dry_run = true;
+  try {
+    s.weld = opt.value("weld", -1.0);
+    s.subdivide = opt.value("subdivide", 0);
+    s.subdivide_to = opt.value("subdivide_to", 0.0);
+    s.scene = opt.value("scene", -1);
+    s.attributes = opt.value("attributes", std::vector<std::string>{});
+  } catch (const nlohmann::json::exception& e) {
+    throw rtp::Error(rtp::ExitCode::kInputInvalid, label + ": metadata /options: " + e.what());
+  }
+  rtp::Scene scene = rtp::convert_scene(s).scene;
+  const auto& h = reader.header();
+  if (scene.instanced_triangles() != h.instanced_triangles || scene.unique_triangles() != h.unique_triangles)
+    throw rtp::Error(rtp::ExitCode::kUsage,
+                     "--source " + source + " is not the scene of this package: it has " + std::to_string(scene.unique_triangles()) +
+                         " unique and " + std::to_string(scene.instanced_triangles()) + " instanced triangles, the package " +
+                         std::to_string(h.unique_triangles) + " and " + std::to_string(h.instanced_triangles));
+  return scene;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rtpack-validate: trace test rays through a package out of core and check every answer"};
+  rtp::tools::add_version_flag(app, "rtpack-validate");
+  std::string package, source, budget_text = "25%", kinds_text;
+  std::vector<std::string> allow;
+  size_t per_kind = 10000;
+  uint64_t seed = 1;
+  int threads = 0;
+  bool json = false, no_cull = false;
+  app.add_option("package", package, "the .rtp package")->required();
+  app.add_option("--source", source, "the glTF the package was converted from: answers are checked against Embree "
+                                     "(ROBUST) on it; without it, against the in-core tracer (byte for byte)");
+  app.add_option("--allow-path", allow, "also read the source's external buffers from DIR (as rtpack-convert)");
+  app.add_option("--rays", per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
+  app.add_option("--kinds", kinds_text, "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
+  app.add_option("--memory-budget", budget_text, "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
+                                                 "a percentage of the package's on-demand bytes (default 25%, raised to the "
+                                                 "package's minimum)");
+  app.add_option("--seed", seed, "ray seed (default 1)");
+  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  app.add_flag("--no-cull", no_cull, "do not cull with the batching points' DAGs");
+  app.add_flag("--json", json, "print the table as JSON on stdout");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : int(rtp::ExitCode::kUsage);
+  }
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+  try {
+    const rtp::PackageReader reader(package);
+    const bool embree = !source.empty();
+    std::vector<std::string> kinds;
+    if (kinds_text.empty()) {
+      if (embree)
+        for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
+      else
+        kinds = {"primary", "random", "shadow"};
+    } else {
+      for (size_t a = 0; a <= kinds_text.size();) {
+        const size_t b = std::min(kinds_text.find(',', a), kinds_text.size());
+        kinds.push_back(kinds_text.substr(a, b - a));
+        a = b + 1;
+      }
+      for (const std::string& k : kinds) {
+        const bool known = embree ? rtp::parse_ray_kind(k).has_value() : (k == "primary" || k == "random" || k == "shadow");
+        if (!known)
+          throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: '" + k + "' is not a ray kind" +
+                                                      (embree ? " (primary, random, bounce, shadow, inside, short)"
+                                                              : " without --source (primary, random, shadow)"));
+      }
+    }
+    const uint64_t on_demand = rtp::on_demand_bytes(reader), minimum = rtp::minimum_budget(reader);
+    uint64_t budget = rtp::parse_memory_budget(budget_text, on_demand);
+    if (app.count("--memory-budget") == 0) budget = std::max(budget, minimum);  // the default never refuses
+    const auto ooc = rtp::open_out_of_core(reader, budget);
+    if (!json) std::fprintf(stderr, "reference: %s\n", embree ? "Embree ROBUST on the source glTF" : "the in-core tracer");
+    rtp::Scene scene;
+    std::unique_ptr<rtp::EmbreeOracle> oracle;
+    std::unique_ptr<rtp::PackageTracer> in_core;
+    if (embree) {
+      scene = source_scene(reader, source, allow);
+      oracle = std::make_unique<rtp::EmbreeOracle>(scene, rtp::OracleQuality::kMedium);
+    } else {
+      in_core = rtp::load_package_in_core(reader);
+    }
+    rtp::PackageTraceOptions opt;
+    opt.isa = rtp::detect_isa();
+    opt.cull = !no_cull;
+    std::vector<KindResult> results;
+    rtp::OutOfCoreStats total;
+    for (const std::string& kind : kinds) {
+      std::vector<Ray> rays;
+      if (embree) {
+        rtp::RayGenOptions g;
+        g.seed = seed;
+        g.closest = [&](const Ray* r, Hit* h, size_t n) { oracle->closest(r, h, n); };
+        rays = rtp::generate_rays(scene, *rtp::parse_ray_kind(kind), per_kind, g);
+      } else {
+        rays = package_rays(reader, *in_core, kind, per_kind, seed);
+      }
+      std::vector<Hit> got(rays.size()), ref(rays.size());
+      std::vector<uint8_t> occ(rays.size());
+      const rtp::OutOfCoreStats a = ooc->closest(rays.data(), got.data(), rays.size(), opt);
+      const rtp::OutOfCoreStats b = ooc->any(rays.data(), occ.data(), rays.size(), opt);
+      for (const rtp::OutOfCoreStats* s : {&a, &b}) {
+        total.rays += s->rays;
+        total.point_visits += s->point_visits;
+        total.culled_visits += s->culled_visits;
+        total.rounds += s->rounds;
+        total.cache.loads += s->cache.loads;
+        total.cache.requests += s->cache.requests;
+        total.cache.hits += s->cache.hits;
+        total.cache.bytes_read += s->cache.bytes_read;
+        total.cache.peak_resident_bytes = std::max(total.cache.peak_resident_bytes, s->cache.peak_resident_bytes);
+        total.peak_resident_bytes = std::max(total.peak_resident_bytes, s->peak_resident_bytes);
+        total.total_seconds += s->total_seconds;
+      }
+      KindResult kr;
+      kr.kind = kind;
+      rtp::CompareOptions co;
+      if (embree) {
+        oracle->closest(rays.data(), ref.data(), rays.size());
+        co.scene = &scene;
+        const std::vector<uint8_t> skip = rtp::unsupported_mask(rays.data(), rays.size());
+        kr.closest = rtp::compare_closest(rays.data(), ref.data(), got.data(), rays.size(), co, skip.data());
+        kr.any = rtp::check_any_hit(rays.data(), ref.data(), occ.data(), rays.size(), co, skip.data(), got.data());
+      } else {
+        in_core->closest(rays.data(), ref.data(), rays.size(), opt);
+        std::vector<uint8_t> ref_occ(rays.size());
+        in_core->any(rays.data(), ref_occ.data(), rays.size(), opt);
+        kr.closest.rays = rays.size();
+        for (size_t i = 0; i < rays.size(); ++i) {
+          const bool same = std::memcmp(&ref[i], &got[i], sizeof(Hit)) == 0;
+          if (same) {
+            ++(got[i].t < INFINITY ? kr.closest.both_hit : kr.closest.both_miss);
+            continue;
+          }
+          ++kr.closest.failures;
+          if (kr.closest.first_failures.size() < co.max_examples)
+            kr.closest.first_failures.push_back({i, rtp::Verdict::kFail, rays[i], ref[i], got[i]});
+        }
+        for (size_t i = 0; i < rays.size(); ++i) kr.any_differ += occ[i] != ref_occ[i];
+        kr.any.rays = rays.size();
+        kr.any.failures = kr.any_differ;
+      }
+      if (!json)
+        std::fprintf(stderr, "  %-8s %zu rays traced out of core (%llu chunks loaded)\n", kind.c_str(), rays.size(),
+                     (unsigned long long)(a.cache.loads + b.cache.loads));
+      results.push_back(std::move(kr));
+    }
+    uint64_t failures = 0;
+    nlohmann::json jk = nlohmann::json::array();
+    for (const KindResult& k : results) {
+      failures += k.closest.failures + k.any.failures;
+      nlohmann::json ex = nlohmann::json::array();
+      for (const rtp::RayDiff& d : k.closest.first_failures) ex.push_back({{"ray", d.index}, {"what", d.describe()}});
+      jk.push_back({{"kind", k.kind}, {"rays", k.closest.rays}, {"skipped", k.closest.skipped}, {"agree", k.closest.agree()},
+                    {"edge_ties", k.closest.edge_ties}, {"precision_ties", k.closest.precision_ties},
+                    {"failures", k.closest.failures}, {"any_hit_failures", k.any.failures}, {"first_failures", ex}});
+    }
+    nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
+    j["package"] = rtp::utf8_display(package);
+    j["reference"] = embree ? "embree" : "in_core";
+    j["kinds"] = jk;
+    j["out_of_core"] = {{"memory_budget", budget}, {"minimum_budget", minimum}, {"on_demand_bytes", on_demand},
+                        {"rounds", total.rounds}, {"chunks_loaded", total.cache.loads}, {"bytes_read", total.cache.bytes_read},
+                        {"cache_hit_rate", total.cache.hit_rate()}, {"batching_point_visits", total.point_visits},
+                        {"culled_visits", total.culled_visits}, {"peak_cache_bytes", total.cache.peak_resident_bytes},
+                        {"peak_resident_bytes", total.peak_resident_bytes},
+                        {"peak_rss_bytes", uint64_t(rtp::peak_rss_mib() * 1048576.0)}, {"seconds", total.total_seconds}};
+    j["failures"] = failures;
+    j["ok"] = failures == 0;
+    if (json) {
+      std::cout << j.dump(2) << "\n";
+    } else {
+      std::printf("%-8s %9s %9s %9s %10s %9s %9s\n", "kind", "rays", "agree", "edge ties", "prec. ties", "failures", "any-hit");
+      for (const KindResult& k : results)
+        std::printf("%-8s %9llu %9llu %9llu %10llu %9llu %9llu\n", k.kind.c_str(), (unsigned long long)k.closest.rays,
+                    (unsigned long long)k.closest.agree(), (unsigned long long)k.closest.edge_ties,
+                    (unsigned long long)k.closest.precision_ties, (unsigned long long)k.closest.failures,
+                    (unsigned long long)k.any.failures);
+      std::printf("out of core: budget %.1f MiB (minimum %.1f, on demand %.1f), %llu chunks loaded, %.1f MiB read, cache hit "
+                  "rate %.1f%%, peak cache %.1f MiB, peak resident %.1f MiB, peak RSS %.1f MiB\n",
+                  double(budget) / 1048576.0, double(minimum) / 1048576.0, double(on_demand) / 1048576.0,
+                  (unsigned long long)total.cache.loads, double(total.cache.bytes_read) / 1048576.0,
+                  100 * total.cache.hit_rate(), double(total.cache.peak_resident_bytes) / 1048576.0,
+                  double(total.peak_resident_bytes) / 1048576.0, rtp::peak_rss_mib());
+      for (const KindResult& k : results)
+        for (const rtp::RayDiff& d : k.closest.first_failures)
+          std::printf("FAIL %s ray %zu:\n%s\n", k.kind.c_str(), d.index, d.describe().c_str());
+      std::printf("%s\n", failures ? "FAILED: some answers are wrong" : "ok: every answer agrees with the reference");
+    }
+    if (failures)
+      return rtp::tools::report_error("rtpack-validate", false, package, rtp::ExitCode::kInputInvalid,
+                                      std::to_string(failures) + " rays answered wrongly (rays named above)");
+  } catch (const rtp::Error& e) {
+    return rtp::tools::report_error("rtpack-validate", json, package, e.code(), e.what());
+  } catch (const std::bad_alloc&) {
+    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal, "out of memory");
+  } catch (const std::exception& e) {
+    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+  }
+  return 0;
+}
