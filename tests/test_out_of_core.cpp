@@ -1,6 +1,6 @@
 // The batched out-of-core tracer (issue 9): on every committed sample, converted in-process into a few
 // dozen batching points, the hits and occlusion answers are byte-identical to the in-core tracer's for
-// budgets of 100 %, 25 %, 10 % and 5 % of the on-demand bytes, 1 and 2 threads, and a shuffled ray
+// budgets of 100 %, 25 %, 10 % and 5 % of the on-demand bytes, 1 and 2 threads (with reading ahead), and a shuffled ray
 // order; the cache's own accounting never exceeds the budget; a budget below the largest batching
 // point (with its mesh segments) is refused naming the minimum. Plus the pieces: the budget parser,
 // the streamed section count, and the parent pointers the stackless walk climbs.
@@ -129,6 +129,7 @@ TEST(OutOfCore, ByteIdenticalToInCoreForEveryBudgetThreadCountAndOrder) {
         tbb::task_arena arena(threads);
         arena.execute([&] {
           const auto ooc = open_out_of_core(reader, budget);
+          ooc->set_prefetch(threads == 2);  // reading ahead on an I/O thread: the 2-thread runs
           std::vector<fmt::Hit> hits(rays.size());
           const OutOfCoreStats st = ooc->closest(rays.data(), hits.data(), rays.size(), options());
           EXPECT_EQ(first_difference(want, hits), -1);
@@ -194,6 +195,31 @@ TEST(OutOfCore, CullingSavesLoadsAndKeepsTheHits) {
               (unsigned long long)budget, (unsigned long long)sa.culled_visits, (unsigned long long)sa.point_visits,
               (unsigned long long)sa.cache.loads, (unsigned long long)sa.cache.bytes_read, (unsigned long long)sb.cache.loads,
               (unsigned long long)sb.cache.bytes_read);
+  fs::remove_all(dir);
+}
+
+// Reading ahead on the I/O thread while a round traces: the same hits with it off, its chunks counted,
+// and the reserved bytes inside the budget (the cache's peak counts resident + in-flight bytes).
+TEST(OutOfCore, PrefetchKeepsTheHitsAndTheBudget) {
+  const fs::path dir = temp_dir("ooc_prefetch");
+  const std::string pkg = (dir / "forest.rtp").string();
+  const Scene scene = convert(samples()[1], pkg, kDefaultZstdLevel, 400);
+  const PackageReader reader(pkg);
+  const auto in_core = load_package_in_core(reader);
+  const std::vector<fmt::Ray> rays = rays_for(scene, *in_core);
+  const uint64_t budget = std::max(minimum_budget(reader), on_demand_bytes(reader) / 4);
+  std::vector<fmt::Hit> a(rays.size()), b(rays.size());
+  const auto on = open_out_of_core(reader, budget), off = open_out_of_core(reader, budget);
+  on->set_prefetch(true);  // off is the default
+  const OutOfCoreStats sa = on->closest(rays.data(), a.data(), rays.size(), options());
+  const OutOfCoreStats sb = off->closest(rays.data(), b.data(), rays.size(), options());
+  EXPECT_EQ(first_difference(a, b), -1);
+  EXPECT_GT(sa.cache.prefetched, 0u);
+  EXPECT_EQ(sb.cache.prefetched, 0u);
+  EXPECT_LE(sa.cache.peak_resident_bytes, budget);
+  EXPECT_LE(sb.cache.peak_resident_bytes, budget);
+  std::printf("prefetch at a %llu-byte budget: %llu of %llu loads read ahead\n", (unsigned long long)budget,
+              (unsigned long long)sa.cache.prefetched, (unsigned long long)sa.cache.loads);
   fs::remove_all(dir);
 }
 

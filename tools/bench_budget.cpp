@@ -88,6 +88,7 @@ int run_budget_bench(const BudgetBenchConfig& cfg) {
         PackageTraceOptions o = opt;
         o.cull = cull;
         const auto ooc = open_out_of_core(reader, budget);
+        ooc->set_prefetch(cfg.prefetch);
         const OutOfCoreStats st = ooc->closest(rays.data(), got.data(), rays.size(), o);
         const bool same = std::memcmp(want.data(), got.data(), want.size() * sizeof(fmt::Hit)) == 0;
         all_identical &= same;
@@ -97,8 +98,9 @@ int run_budget_bench(const BudgetBenchConfig& cfg) {
                      st.total_seconds, st.total_seconds / in_core_s, double(st.peak_resident_bytes) / 1048576.0,
                      same ? "" : "  HITS DIFFER FROM IN CORE");
         records.push_back({{"kind", ray_kind_name(kind)}, {"mode", "out_of_core"}, {"budget_percent", pct}, {"budget_bytes", budget},
-                           {"cull", cull}, {"rays", rays.size()}, {"rounds", st.rounds}, {"chunks_loaded", st.cache.loads},
+                           {"cull", cull}, {"rays", rays.size()}, {"rounds", st.rounds}, {"passes", st.passes}, {"chunks_loaded", st.cache.loads},
                            {"bytes_read", st.cache.bytes_read}, {"raw_bytes_loaded", st.cache.raw_bytes_loaded},
+                           {"chunks_prefetched", st.cache.prefetched},
                            {"cache_hit_rate", st.cache.hit_rate()}, {"seconds", st.total_seconds},
                            {"load_seconds", st.load_seconds}, {"walk_seconds", st.walk_seconds},
                            {"trace_seconds", st.trace_seconds}, {"vs_in_core", st.total_seconds / in_core_s},
@@ -116,6 +118,7 @@ int run_budget_bench(const BudgetBenchConfig& cfg) {
     j["threads"] = cfg.threads;
     j["cpu"] = cpu_model();
     j["direct_io"] = reader.direct_io();
+    j["prefetch"] = cfg.prefetch;
     j["peak_rss_bytes"] = uint64_t(peak_rss_mib() * 1048576.0);
     j["records"] = records;
     std::cout << j.dump(2) << "\n";

@@ -21,6 +21,7 @@ struct BudgetBenchConfig {
   uint64_t seed = 1;
   int threads = 0;  // 0: all
   bool direct_io = false;
+  bool prefetch = false;  // --prefetch: read ahead on an I/O thread while a round traces
   bool json = false;
   Isa isa = Isa::kScalar;
 };

@@ -516,6 +516,8 @@ int main(int argc, char** argv) {
       ->needs(ooc_opt);
   app.add_flag("--direct-io", budget.direct_io, "--out-of-core: read chunks with O_DIRECT (the page cache does not hide the disk)")
       ->needs(ooc_opt);
+  bool prefetch = false;
+  app.add_flag("--prefetch", prefetch, "--out-of-core: read ahead on an I/O thread while a round traces")->needs(ooc_opt);
   ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
   bench::DagBenchConfig dag;
   bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
@@ -577,7 +579,7 @@ int main(int argc, char** argv) {
       budget.scene_path = cfg.scene_path;
       budget.allow_paths = cfg.allow_paths;
       budget.threads = threads == "all" ? 0 : cfg.threads[0];
-      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa;
+      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa, budget.prefetch = prefetch;
       if (app.count("--rays")) budget.rays = cfg.rays;
       if (app.count("--kinds")) budget.kinds = cfg.kinds;
       if (!budgets.empty()) {

@@ -85,6 +85,9 @@ int main(int argc, char** argv) {
   app.add_option("--memory-budget", budget_text,
                  "trace out of core: batching points and mesh segments held in a cache of this many bytes "
                  "(e.g. 256MiB, 2GB, or 10% of the package's on-demand bytes); in core without it");
+  bool prefetch = false;
+  app.add_flag("--prefetch", prefetch, "with --memory-budget: read the next round's likely chunks on an I/O thread while a "
+                                       "round traces (same hits; off by default, see docs/trace/budget.md)");
   app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
   app.add_flag("--no-cull", no_cull, "do not test rays against the batching points' culling DAGs (same hits, slower)");
   app.add_flag("--json", json, "print the counts as JSON on stdout");
@@ -138,6 +141,7 @@ int main(int argc, char** argv) {
     if (!budget_text.empty()) {
       budget = rtp::parse_memory_budget(budget_text, rtp::on_demand_bytes(reader));
       ooc = rtp::open_out_of_core(reader, budget);
+      ooc->set_prefetch(prefetch);
     } else {
       tracer = rtp::load_package_in_core(reader);
     }
@@ -243,11 +247,13 @@ int main(int argc, char** argv) {
     j["mode"] = ooc ? "out of core" : "in core";
     j["memory_budget"] = ooc ? nlohmann::json(budget) : nlohmann::json(nullptr);
     j["rounds"] = ooc ? os.rounds : 0;
+    j["passes"] = ooc ? os.passes : 0;
     j["chunks_loaded"] = ooc ? os.cache.loads : ls.chunks;
     j["bytes_read"] = ooc ? os.cache.bytes_read : ls.stored_bytes;
     j["chunk_raw_bytes"] = ooc ? os.cache.raw_bytes_loaded : ls.raw_bytes;
     j["cache_hit_rate"] = ooc ? nlohmann::json(os.cache.hit_rate()) : nlohmann::json(nullptr);
     j["cache_evictions"] = ooc ? os.cache.evictions : 0;
+    j["chunks_prefetched"] = ooc ? os.cache.prefetched : 0;
     j["peak_cache_bytes"] = ooc ? os.cache.peak_resident_bytes : ls.raw_bytes;
     j["peak_resident_bytes"] = ooc ? os.peak_resident_bytes : ls.raw_bytes;
     j["peak_rss_bytes"] = uint64_t(rtp::peak_rss_mib() * 1048576.0);
@@ -265,10 +271,11 @@ int main(int argc, char** argv) {
     else {
       if (ooc)
         std::fprintf(stderr,
-                     "out of core, budget %.1f MiB: %llu rounds, %llu chunks loaded (%.1f MiB read, %.1f MiB "
+                     "out of core, budget %.1f MiB: %llu rounds, %llu chunks loaded (%llu read ahead; %.1f MiB read, %.1f MiB "
                      "decompressed), cache hit rate %.1f%%, %llu evictions; peak cache %.1f MiB, peak resident %.1f MiB, "
                      "peak RSS %.1f MiB; load %.3f s, walk %.3f s, trace %.3f s\n",
                      double(budget) / 1048576.0, (unsigned long long)os.rounds, (unsigned long long)os.cache.loads,
+                     (unsigned long long)os.cache.prefetched,
                      double(os.cache.bytes_read) / 1048576.0, double(os.cache.raw_bytes_loaded) / 1048576.0,
                      100 * os.cache.hit_rate(), (unsigned long long)os.cache.evictions,
                      double(os.cache.peak_resident_bytes) / 1048576.0, double(os.peak_resident_bytes) / 1048576.0,

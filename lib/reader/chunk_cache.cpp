@@ -5,12 +5,68 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
+#include <thread>
 
 #include "core/error.h"
 
 namespace rtp {
 
+struct ChunkCache::Prefetch {
+  std::vector<uint32_t> indices;
+  std::vector<AlignedBytes> bytes;
+  std::exception_ptr error;
+  std::thread thread;
+};
+
 ChunkCache::ChunkCache(const PackageReader& reader, uint64_t budget_bytes) : reader_(reader), budget_(budget_bytes) {}
+
+ChunkCache::~ChunkCache() {
+  if (prefetch_ && prefetch_->thread.joinable()) prefetch_->thread.join();
+}
+
+void ChunkCache::join_prefetch() {
+  if (!prefetch_) return;
+  prefetch_->thread.join();
+  std::unique_ptr<Prefetch> p = std::move(prefetch_);
+  in_flight_ = 0;
+  if (p->error) std::rethrow_exception(p->error);
+  staged_indices_ = std::move(p->indices);
+  staged_bytes_ = std::move(p->bytes);
+}
+
+void ChunkCache::prefetch(const std::vector<uint32_t>& toc_indices) {
+  join_prefetch();  // (none runs here: acquire() joined it)
+  uint64_t pinned = 0;
+  for (const auto& [index, e] : entries_) pinned += e.pinned ? e.bytes.size() : 0;
+  for (uint32_t i : staged_indices_) pinned += cost(i);
+  auto p = std::make_unique<Prefetch>();
+  uint64_t bytes = 0;
+  for (uint32_t i : toc_indices) {
+    if (entries_.count(i) || std::find(p->indices.begin(), p->indices.end(), i) != p->indices.end() ||
+        std::find(staged_indices_.begin(), staged_indices_.end(), i) != staged_indices_.end())
+      continue;
+    if (pinned + bytes + cost(i) > budget_) break;  // in order: the likeliest first
+    p->indices.push_back(i);
+    bytes += cost(i);
+  }
+  if (p->indices.empty()) return;
+  evict_until(bytes);
+  if (stats_.resident_bytes + bytes > budget_) return;  // pinned chunks leave no room: no prefetch
+  in_flight_ = bytes;
+  stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes + in_flight_);
+  p->bytes.resize(p->indices.size());
+  Prefetch* raw = p.get();
+  const PackageReader* reader = &reader_;
+  p->thread = std::thread([raw, reader] {
+    try {
+      for (size_t k = 0; k < raw->indices.size(); ++k) raw->bytes[k] = reader->read(raw->indices[k]);
+    } catch (...) {
+      raw->error = std::current_exception();
+    }
+  });
+  prefetch_ = std::move(p);
+}
 
 const AlignedBytes& ChunkCache::bytes(uint32_t toc_index) const {
   const auto it = entries_.find(toc_index);
@@ -25,7 +81,7 @@ void ChunkCache::release() {
 
 // Least recently used first, pinned chunks skipped, until `incoming` more bytes fit in the budget.
 void ChunkCache::evict_until(uint64_t incoming) {
-  for (auto it = lru_.end(); it != lru_.begin() && stats_.resident_bytes + incoming > budget_;) {
+  for (auto it = lru_.end(); it != lru_.begin() && stats_.resident_bytes + in_flight_ + incoming > budget_;) {
     --it;
     auto e = entries_.find(*it);
     if (e->second.pinned) continue;
@@ -36,8 +92,34 @@ void ChunkCache::evict_until(uint64_t incoming) {
   }
 }
 
+void ChunkCache::insert(uint32_t i, AlignedBytes bytes, bool pinned) {
+  stats_.bytes_read += reader_.toc()[i].stored_size;
+  stats_.raw_bytes_loaded += bytes.size();
+  ++stats_.loads;
+  stats_.resident_bytes += bytes.size();
+  lru_.push_front(i);
+  Entry& e = entries_[i];
+  e.bytes = std::move(bytes);
+  e.lru = lru_.begin();
+  e.pinned = pinned;
+}
+
 void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
                          const std::function<void(uint32_t, const AlignedBytes&)>& on_load) {
+  const auto t_wait = std::chrono::steady_clock::now();
+  join_prefetch();
+  stats_.load_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_wait).count();
+  // What the I/O thread read ahead becomes resident (unpinned) like any other load; a request for it
+  // below is a miss that did not wait, not a hit.
+  std::vector<uint32_t> staged = std::move(staged_indices_);
+  tbb::parallel_for(size_t(0), staged.size(), [&](size_t k) { on_load(staged[k], staged_bytes_[k]); }, tbb::simple_partitioner());
+  for (size_t k = 0; k < staged.size(); ++k) {
+    insert(staged[k], std::move(staged_bytes_[k]), false);
+    ++stats_.prefetched;
+  }
+  staged_indices_.clear();
+  staged_bytes_.clear();
+  std::sort(staged.begin(), staged.end());
   std::vector<uint32_t> want(toc_indices);
   std::sort(want.begin(), want.end());
   want.erase(std::unique(want.begin(), want.end()), want.end());
@@ -51,7 +133,7 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
       incoming += cost(i);
       continue;
     }
-    ++stats_.hits;
+    if (!std::binary_search(staged.begin(), staged.end(), i)) ++stats_.hits;
     it->second.pinned = true;
     lru_.splice(lru_.begin(), lru_, it->second.lru);  // most recently used
   }
@@ -63,21 +145,12 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
   if (missing.empty()) return;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<AlignedBytes> loaded(missing.size());
-  tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) { loaded[k] = reader_.read(missing[k]); }, tbb::simple_partitioner());
+  tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
+    loaded[k] = reader_.read(missing[k]);
+    on_load(missing[k], loaded[k]);
+  }, tbb::simple_partitioner());
   stats_.load_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  for (size_t k = 0; k < missing.size(); ++k) {
-    const uint32_t i = missing[k];
-    on_load(i, loaded[k]);
-    stats_.bytes_read += reader_.toc()[i].stored_size;
-    stats_.raw_bytes_loaded += loaded[k].size();
-    ++stats_.loads;
-    stats_.resident_bytes += loaded[k].size();
-    lru_.push_front(i);
-    Entry& e = entries_[i];
-    e.bytes = std::move(loaded[k]);
-    e.lru = lru_.begin();
-    e.pinned = true;
-  }
+  for (size_t k = 0; k < missing.size(); ++k) insert(missing[k], std::move(loaded[k]), true);
   stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
 }
 

@@ -147,6 +147,7 @@ class Batched final : public OutOfCoreTracer {
       : r_(r), res_(std::move(res)), cache_(r, budget), points_(res_.n_points), segments_(res_.layout.segment_chunk.size()) {}
 
   bool has_dags() const override { return res_.grids != nullptr; }
+  void set_prefetch(bool on) override { prefetch_ = on; }
 
   OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) override {
     for (size_t i = 0; i < n; ++i) hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
@@ -247,6 +248,7 @@ class Batched final : public OutOfCoreTracer {
     st.walk_seconds += seconds_since(t0);
     std::vector<uint32_t> order(res_.n_points);
     std::vector<uint8_t> in_round(r_.toc().size(), 0);  // chunks of the round being chosen
+    std::vector<uint8_t> point_mark(res_.n_points, 0);   // points of the round being traced
     while (waiting > 0) {
       ++st.rounds;
       // Molenaar 2019 §4.3: the points with the most waiting rays first, as many as fit in the budget.
@@ -254,6 +256,8 @@ class Batched final : public OutOfCoreTracer {
       std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return queue[a].size() > queue[b].size(); });
       std::vector<uint32_t> chosen, chunks;
       uint64_t bytes = 0;
+      // With reading ahead, a quarter of the budget stays free for the next round's chunks.
+      const uint64_t round_cap = prefetch_ ? cache_.budget() - cache_.budget() / 4 : cache_.budget();
       for (uint32_t p : order) {
         if (queue[p].empty()) break;
         uint64_t add = in_round[res_.layout.point_chunk[p]] ? 0 : cache_.cost(res_.layout.point_chunk[p]);
@@ -261,7 +265,7 @@ class Batched final : public OutOfCoreTracer {
           const uint32_t c = res_.layout.segment_chunk[s];
           if (!in_round[c]) add += cache_.cost(c);  // a segment named twice counts twice: conservative
         }
-        if (!chosen.empty() && bytes + add > cache_.budget()) continue;
+        if (!chosen.empty() && bytes + add > round_cap) continue;
         chosen.push_back(p);
         bytes += add;
         auto take = [&](uint32_t c) {
@@ -274,39 +278,59 @@ class Batched final : public OutOfCoreTracer {
       t0 = Clock::now();
       cache_.acquire(chunks, [&](uint32_t index, const AlignedBytes& b) { decode(index, b); });
       for (uint32_t p : chosen) bind_meshes(p);
+      // While this round traces, the I/O thread reads ahead the chunks of the points likely next: those
+      // with the most waiting rays that this round does not take (in that order, as the budget allows).
+      std::vector<uint32_t> ahead;
+      for (uint32_t p : chosen) point_mark[p] = 1;
+      for (uint32_t p : order) {
+        if (queue[p].empty() || ahead.size() > 4096) break;
+        if (point_mark[p]) continue;
+        ahead.push_back(res_.layout.point_chunk[p]);
+        for (uint32_t s : res_.layout.point_segments[p]) ahead.push_back(res_.layout.segment_chunk[s]);
+      }
+      for (uint32_t p : chosen) point_mark[p] = 0;
+      if (prefetch_) cache_.prefetch(ahead);
       st.load_seconds += seconds_since(t0);
-      // All threads on the chosen points' rays, kBlock at a time.
-      struct Work { uint32_t p, first, count; };
-      std::vector<Work> work;
-      for (uint32_t p : chosen)
-        for (size_t f = 0; f < queue[p].size(); f += kBlock)
-          work.push_back({p, uint32_t(f), uint32_t(std::min(kBlock, queue[p].size() - f))});
-      t0 = Clock::now();
-      tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
-        const Work& wk = work[w];
-        const PointSlot<W, B>& pt = points_[wk.p];
-        const uint32_t* ids = queue[wk.p].data() + wk.first;
-        fmt::Ray local[kBlock];
-        for (uint32_t j = 0; j < wk.count; ++j) {
-          local[j] = rays[ids[j]];
-          local[j].tnear = tstart[ids[j]];
-          local[j].tfar = current_tfar(ids[j]);
-        }
-        thread_local std::vector<uint8_t> done;
-        done.assign(kBlock, 0);
-        trace_block(pt.view, pt.s.global_ids, ids, local, wk.count, done);
-        Moves& m = moves.local();
-        PackageTraceStats& ws = walk_stats.local();
-        for (uint32_t j = 0; j < wk.count; ++j) {
-          if (done[j]) continue;  // any hit: occluded, the walk ends
-          const uint32_t i = ids[j];
-          const uint32_t next = advance(rays[i], current_tfar(i), pos[i], tstart[i], cull, ws);
-          if (next != kNone) m.push_back({next, i});
-        }
-      });
-      st.trace_seconds += seconds_since(t0);
-      for (uint32_t p : chosen) std::vector<uint32_t>().swap(queue[p]);
-      waiting = enqueue_moves();
+      // All threads on the chosen points' rays, kBlock at a time; rays that move on to another point of
+      // this round are traced in another pass while it is still resident (no reload).
+      std::vector<uint32_t> active = chosen;
+      while (!active.empty()) {
+        struct Work { uint32_t p, first, count; };
+        std::vector<Work> work;
+        for (uint32_t p : active)
+          for (size_t f = 0; f < queue[p].size(); f += kBlock)
+            work.push_back({p, uint32_t(f), uint32_t(std::min(kBlock, queue[p].size() - f))});
+        t0 = Clock::now();
+        tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
+          const Work& wk = work[w];
+          const PointSlot<W, B>& pt = points_[wk.p];
+          const uint32_t* ids = queue[wk.p].data() + wk.first;
+          fmt::Ray local[kBlock];
+          for (uint32_t j = 0; j < wk.count; ++j) {
+            local[j] = rays[ids[j]];
+            local[j].tnear = tstart[ids[j]];
+            local[j].tfar = current_tfar(ids[j]);
+          }
+          thread_local std::vector<uint8_t> done;
+          done.assign(kBlock, 0);
+          trace_block(pt.view, pt.s.global_ids, ids, local, wk.count, done);
+          Moves& m = moves.local();
+          PackageTraceStats& ws = walk_stats.local();
+          for (uint32_t j = 0; j < wk.count; ++j) {
+            if (done[j]) continue;  // any hit: occluded, the walk ends
+            const uint32_t i = ids[j];
+            const uint32_t next = advance(rays[i], current_tfar(i), pos[i], tstart[i], cull, ws);
+            if (next != kNone) m.push_back({next, i});
+          }
+        });
+        st.trace_seconds += seconds_since(t0);
+        ++st.passes;
+        for (uint32_t p : active) std::vector<uint32_t>().swap(queue[p]);
+        waiting = enqueue_moves();
+        active.clear();
+        for (uint32_t p : chosen)
+          if (!queue[p].empty()) active.push_back(p);
+      }
       cache_.release();
       const uint64_t cache_now = cache_.stats().resident_bytes;
       st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + cache_now + st.peak_ray_bytes);
@@ -324,6 +348,7 @@ class Batched final : public OutOfCoreTracer {
     st.cache.bytes_read -= cache_before.bytes_read;
     st.cache.raw_bytes_loaded -= cache_before.raw_bytes_loaded;
     st.cache.evictions -= cache_before.evictions;
+    st.cache.prefetched -= cache_before.prefetched;
     st.cache.load_seconds -= cache_before.load_seconds;
     st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + c.peak_resident_bytes + st.peak_ray_bytes);
     st.total_seconds = seconds_since(t_total);
@@ -383,6 +408,7 @@ class Batched final : public OutOfCoreTracer {
   ChunkCache cache_;
   std::vector<PointSlot<W, B>> points_;
   std::vector<SegmentSlot<W, B>> segments_;
+  bool prefetch_ = false;  // measured slower on 2 cores (docs/trace/budget.md): opt in
 };
 
 }  // namespace

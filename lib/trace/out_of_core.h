@@ -19,7 +19,8 @@
 namespace rtp {
 
 struct OutOfCoreStats : PackageTraceStats {
-  uint64_t rounds = 0;
+  uint64_t rounds = 0;              // scheduling rounds (a set of batching points made resident)
+  uint64_t passes = 0;              // tracing passes over them (rays moving between points of a round)
   ChunkCacheStats cache;            // chunks loaded, bytes read, hit rate, peak resident cache bytes
   uint64_t budget_bytes = 0;        // the cache's budget
   uint64_t fixed_bytes = 0;         // resident always: top level, descriptors, DAG pool
@@ -39,6 +40,10 @@ class OutOfCoreTracer {
   virtual OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) = 0;
   virtual OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) = 0;
   virtual bool has_dags() const = 0;
+  // Reading the next round's likely chunks on a background I/O thread while a round traces, a quarter of
+  // the budget kept for them (default off: every chunk is read, in parallel, when its round starts; on
+  // this project's 2-core machine reading ahead was slower, docs/trace/budget.md). Same hits either way.
+  virtual void set_prefetch(bool on) = 0;
 };
 
 // The decompressed bytes of the chunks tracing reads on demand (batching points and mesh segments):
