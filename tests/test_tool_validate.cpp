@@ -68,6 +68,36 @@ TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
   fs::remove_all(dir);
 }
 
+// The real assets nobody here wrote (skips without ../shared/assets): every model and scene, and
+// DamagedHelmet (the other Khronos assets are committed in samples/ and covered above).
+TEST(ValidateTool, PassesOnSharedAssets) {
+  const fs::path root = shared_assets();
+  if (!fs::exists(root)) GTEST_SKIP() << root << " is absent (../shared/assets is not checked out next to the repository)";
+  std::vector<fs::path> files;
+  for (const char* sub : {"models", "scenes"})
+    for (const auto& e : fs::directory_iterator(root / sub))
+      if (e.path().extension() == ".glb") files.push_back(e.path());
+  files.push_back(root / "khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+  std::sort(files.begin(), files.end());
+  const fs::path dir = temp_dir("validate_shared");
+  size_t validated = 0;
+  for (const fs::path& src : files) {
+    if (!fs::exists(src)) continue;
+    SCOPED_TRACE(src.string());
+    const std::string pkg = (dir / (src.stem().string() + ".rtp")).string();
+    convert_to(src.string(), pkg, 30);
+    const ToolResult r = run_tool("rtpack-validate", {pkg, "--source", src.string(), "--rays", sanitized() ? "100" : "1000",
+                                                      "--json"}, dir, {}, 600);
+    ASSERT_EQ(r.code, 0) << r.out << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_TRUE(j["ok"].get<bool>()) << r.out;
+    ++validated;
+  }
+  std::printf("rtpack-validate: %zu shared assets pass against Embree\n", validated);
+  EXPECT_GE(validated, 10u);
+  fs::remove_all(dir);
+}
+
 // One triangle collapsed to a point: the triangle that most of the camera's primary rays hit, in the mesh
 // segment that stores its (instanced) mesh, every lane that holds it; the chunk re-sealed, so container and
 // structural checks pass. Embree on the source disagrees on the rays through it.

@@ -386,7 +386,11 @@ std::vector<fmt::Ray> short_rays(const Scene& scene, const Frame& f, size_t coun
     const double u = rng.uniform(), sel = rng.uniform();
     if (hits[i].t < kInf) {
       const double th = hits[i].t;
-      if (sel < 0.5) {
+      // An origin on a surface (th = 0) has no interval that ends before or just past its first hit: each
+      // would be [0, 0] or [0, 0·k], which still holds the hit (TESTING.md item 5) while Embree reports a
+      // miss for such an empty-length interval. Such a ray stays as it was: it hits at 0 on both sides.
+      if (th == 0) {
+      } else if (sel < 0.5) {
         r.tfar = float(th * (0.05 + 0.9 * u));  // ends before the first hit: must miss
       } else if (sel < 0.75) {
         r.tfar = float(th * (1.002 + 0.5 * u));  // ends just past the first hit: must hit it
