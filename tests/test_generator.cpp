@@ -374,6 +374,39 @@ TEST_F(Generator, ImportForest) {
   EXPECT_GE(scene.cameras.size(), 1u);
 }
 
+// forest --unique: every instance its own mesh (unique geometry for out-of-core traffic, issue 9), each a
+// perturbed copy of its source placed like the instanced forest: same instance count, triangles all
+// unique, no two copies with the same vertices, sizes as the instanced forest's, the same bytes twice.
+TEST_F(Generator, UniqueForestHasNoSharedMesh) {
+  const uint64_t count = 23;
+  ASSERT_EQ(run("forest --unique --count " + std::to_string(count) + " -o " + quote(out("u.glb").string())), 0);
+  ASSERT_EQ(run("forest --unique --count " + std::to_string(count) + " -o " + quote(out("u2.glb").string())), 0);
+  EXPECT_TRUE(read_bytes(out("u.glb")) == read_bytes(out("u2.glb")));
+  ASSERT_EQ(run("forest --count " + std::to_string(count) + " -o " + quote(out("i.glb").string())), 0);
+  const rtp::Scene u = rtp::import_gltf(out("u.glb").string()), inst = rtp::import_gltf(out("i.glb").string());
+  ASSERT_EQ(u.instances.size(), count);
+  EXPECT_EQ(u.meshes.size(), count);
+  EXPECT_EQ(u.unique_triangles(), u.instanced_triangles());
+  EXPECT_EQ(u.instanced_triangles(), inst.instanced_triangles());
+  EXPECT_NE(stdout_text().find("unique_triangles=" + std::to_string(inst.instanced_triangles())), std::string::npos)
+      << stdout_text();
+  std::set<uint32_t> meshes;
+  for (const rtp::Instance& i : u.instances) meshes.insert(i.mesh);
+  EXPECT_EQ(meshes.size(), count);
+  // Copies 0 and 5 come from the same source (5 sources): same triangles, different vertices.
+  const rtp::Mesh& a = u.meshes[u.instances[0].mesh];
+  const rtp::Mesh& b = u.meshes[u.instances[5].mesh];
+  ASSERT_EQ(a.triangle_count(), b.triangle_count());
+  EXPECT_NE(a.positions[0].x, b.positions[0].x);
+  for (const rtp::Instance& i : u.instances) {
+    const rtp::Vec3d e = u.meshes[i.mesh].local_bounds().extent();
+    const double size = i.transform.max_scale() * std::max({e.x, e.y, e.z});
+    EXPECT_GT(size, 0.49);
+    EXPECT_LT(size, 1.51);
+  }
+  EXPECT_EQ(run("gallery --unique -o " + quote(out("g.glb").string())), 1);  // forest only
+}
+
 TEST_F(Generator, ImportFar) {
   ASSERT_EQ(run("far -o " + quote(out("far.glb").string())), 0);
   const rtp::Scene scene = rtp::import_gltf(out("far.glb").string());

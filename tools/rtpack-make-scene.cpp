@@ -1,7 +1,7 @@
 // rtpack-make-scene: deterministic generator of test scenes (.glb) built from real sample meshes.
 //
 //   rtpack-make-scene gallery -o gallery.glb [--count 12] [--spacing 2]
-//   rtpack-make-scene forest  -o forest.glb  [--count 3000] [--seed 1] [--refine 1]
+//   rtpack-make-scene forest  -o forest.glb  [--count 3000] [--seed 1] [--refine 1] [--unique]
 //   rtpack-make-scene far     -o far.glb     [--base gallery|forest]
 //
 // Source meshes: every triangle rtp::Mesh that rtp::import_gltf returns for each --mesh file (default:
@@ -80,6 +80,7 @@ struct Options {
   double spacing = 2.0;
   int refine = -1;     // -1: 1 for forest content, 0 otherwise
   std::vector<std::string> meshes, allow_paths;
+  bool unique = false;  // forest: every instance its own perturbed mesh (no GPU instancing)
   bool forest_content() const { return kind == "forest" || (kind == "far" && base == "forest"); }
 };
 
@@ -94,6 +95,7 @@ struct SourceMesh {
 
 struct Totals {
   uint64_t instances = 0, instanced_triangles = 0;
+  uint64_t unique_triangles = 0;  // set by --unique only
 };
 
 // ---------------------------------------------------------------------------------------------------
@@ -287,7 +289,7 @@ class GlbBuilder {
   std::vector<uint8_t> bin_;
 };
 
-void add_mesh(GlbBuilder& g, const SourceMesh& m) {
+int add_mesh(GlbBuilder& g, const SourceMesh& m) {
   size_t begin = g.begin_view();
   for (const rtp::Vec3f& p : m.positions) {
     g.put_f32(p.x);
@@ -302,6 +304,7 @@ void add_mesh(GlbBuilder& g, const SourceMesh& m) {
   const int idx = g.end_accessor(begin, kElementArrayBuffer, kUnsignedInt, m.indices.size(), "SCALAR");
   json prim = {{"attributes", {{"POSITION", pos}}}, {"indices", idx}, {"mode", 4}};
   g.doc["meshes"].push_back({{"name", m.name}, {"primitives", json::array({prim})}});
+  return idx;
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -395,6 +398,55 @@ double uniform(std::mt19937_64& rng) { return double(rng() >> 11) * 0x1.0p-53; }
 
 int16_t snorm16(double v) { return int16_t(std::lround(std::clamp(v, -1.0, 1.0) * 32767.0)); }
 
+// forest --unique: instance k becomes its own mesh, a copy of source k mod n whose every vertex is moved
+// by a hash of (k, vertex) up to 0.1 % of the mesh size, sharing the source's index accessor; a TRS node
+// places it as the instancing attributes would. Unique geometry, so out-of-core traffic is real (issue 9).
+template <class Attributes>
+Totals build_unique(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const std::vector<Attributes>& attrs, const Options& o,
+                    int root) {
+  const uint64_t nm = meshes.size();
+  Totals totals;
+  std::vector<size_t> used(nm, 0);
+  for (uint64_t k = 0; k < uint64_t(o.count); ++k) {
+    const uint64_t mi = k % nm;
+    const SourceMesh& m = meshes[mi];
+    const size_t j = used[mi]++;
+    const Attributes& a = attrs[mi];
+    const double amp = 1e-3 * std::max({double(m.hi.x - m.lo.x), double(m.hi.y - m.lo.y), double(m.hi.z - m.lo.z)});
+    const size_t begin = g.begin_view();
+    rtp::Vec3f lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+      uint64_t h = (k * 0x9E3779B97F4A7C15ull) ^ (v * 0xBF58476D1CE4E5B9ull);
+      rtp::Vec3f p = m.positions[v];
+      float* c[3] = {&p.x, &p.y, &p.z};
+      for (int ax = 0; ax < 3; ++ax) {
+        h = (h ^ (h >> 31)) * 0x94D049BB133111EBull + 0x632BE59BD9B4E019ull;
+        *c[ax] += float(amp * (double(h >> 11) * 0x1.0p-53 - 0.5));
+      }
+      lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+      hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+      g.put_f32(p.x);
+      g.put_f32(p.y);
+      g.put_f32(p.z);
+    }
+    const int pos = g.end_accessor(begin, kArrayBuffer, kFloat, m.positions.size(), "VEC3");
+    g.doc["accessors"][size_t(pos)]["min"] = {lo.x, lo.y, lo.z};
+    g.doc["accessors"][size_t(pos)]["max"] = {hi.x, hi.y, hi.z};
+    const json prim = {{"attributes", {{"POSITION", pos}}}, {"indices", g.doc["meshes"][mi]["primitives"][0]["indices"]}, {"mode", 4}};
+    g.doc["meshes"].push_back({{"name", m.name + "_" + std::to_string(k)}, {"primitives", json::array({prim})}});
+    const double n = m.norm, sc = a.s[3 * j];
+    const D3 t{a.t[3 * j] * n, a.t[3 * j + 1] * n, a.t[3 * j + 2] * n};
+    const D4 q{a.r[4 * j], a.r[4 * j + 1], a.r[4 * j + 2], a.r[4 * j + 3]};
+    json node = trs_node("unique_" + std::to_string(k), t, q, {sc * n, sc * n, sc * n});
+    node["mesh"] = g.doc["meshes"].size() - 1;
+    g.add_node(std::move(node), root);
+    ++totals.instances;
+    totals.instanced_triangles += m.triangles();
+    totals.unique_triangles += m.triangles();
+  }
+  return totals;
+}
+
 Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const Options& o, int root) {
   const uint64_t n = uint64_t(o.count), nm = meshes.size();
   uint64_t grid = uint64_t(std::sqrt(double(n)));
@@ -424,8 +476,14 @@ Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const 
     a.r.insert(a.r.end(), {float(q[0]), float(q[1]), float(q[2]), float(q[3])});
     a.s.insert(a.s.end(), {float(sc), float(sc), float(sc)});
   }
-  const uint64_t short_rotation_mesh = 1 % nm;
   Totals totals;
+  if (o.unique) {
+    totals = build_unique(g, meshes, attrs, o, root);
+    const double side = double(grid) * o.spacing;
+    add_cameras(g, root, {0, 0.5, 0}, 0.5 * std::sqrt(2 * side * side + 1.0), false);
+    return totals;
+  }
+  const uint64_t short_rotation_mesh = 1 % nm;
   for (uint64_t mi = 0; mi < nm; ++mi) {
     Attributes& a = attrs[mi];
     const size_t k = a.s.size() / 3;
@@ -482,6 +540,13 @@ int run(const Options& cli) {
   if (unique > kMaxUniqueTriangles)
     throw Error(ExitCode::kUsage, "--refine " + std::to_string(o.refine) + " would give " + std::to_string(unique) +
                                       " unique triangles (limit " + std::to_string(kMaxUniqueTriangles) + ")");
+  if (o.unique) {  // every instance a copy: count * (mean source triangles)
+    unique = 0;
+    for (int64_t k = 0; k < o.count; ++k) unique += meshes[size_t(k) % meshes.size()].triangles() << (2 * o.refine);
+    if (unique > kMaxUniqueTriangles)
+      throw Error(ExitCode::kUsage, "--unique --count " + std::to_string(o.count) + " would give " + std::to_string(unique) +
+                                        " unique triangles (limit " + std::to_string(kMaxUniqueTriangles) + ")");
+  }
   for (SourceMesh& m : meshes) {
     for (int level = 0; level < o.refine; ++level) refine_once(m);
     compute_bounds(m);
@@ -489,12 +554,12 @@ int run(const Options& cli) {
   }
 
   GlbBuilder g;
-  g.reserve(size_t(vertices * 12 + unique * 12 + (forest ? uint64_t(o.count) * 40 : 0) + 4096));
+  g.reserve(size_t(vertices * 12 + unique * (o.unique ? 8 : 12) + (forest ? uint64_t(o.count) * 40 : 0) + 4096));
   json sources = json::array();
   for (const std::string& f : files) sources.push_back(rtp::utf8_display(fs::path(f).filename().string()));
   g.doc["asset"]["extras"] = {{"kind", o.kind},   {"base", o.kind == "far" ? o.base : o.kind},
                               {"count", o.count}, {"seed", o.seed},
-                              {"refine", o.refine}, {"spacing", o.spacing},
+                              {"refine", o.refine}, {"spacing", o.spacing}, {"unique", o.unique},
                               {"sources", sources}};
   for (const SourceMesh& m : meshes) add_mesh(g, m);
   const D3 offset = o.kind == "far" ? kFarOffset : D3{0, 0, 0};
@@ -505,7 +570,7 @@ int run(const Options& cli) {
   const size_t nodes = g.node_count();
   const uint64_t bytes = g.write(o.output);
   std::cout << o.output << ": kind=" << o.kind << " nodes=" << nodes << " meshes=" << meshes.size()
-            << " instances=" << totals.instances << " unique_triangles=" << unique
+            << " instances=" << totals.instances << " unique_triangles=" << (o.unique ? totals.unique_triangles : unique)
             << " instanced_triangles=" << totals.instanced_triangles << " bytes=" << bytes << std::endl;
   return 0;
 }
@@ -521,6 +586,9 @@ int main(int argc, char** argv) {
   app.add_option("--count", o.count, "gallery: mesh nodes (default 12); forest: total instances (default 3000)")
       ->check(CLI::Range(int64_t(1), int64_t(100'000'000)));
   app.add_option("--seed", o.seed, "forest random seed (default 1)");
+  CLI::Option* unique = app.add_flag("--unique", o.unique,
+                                     "forest: every instance its own mesh, a copy of its source with every vertex moved by "
+                                     "a per-copy hash (unique geometry, no GPU instancing)");
   app.add_option("--spacing", o.spacing, "grid spacing; meshes are normalized to size 1 (default 2)")
       ->check(CLI::Range(1e-3, 1e5));
   app.add_option("--mesh", o.meshes, "source glTF file, repeatable (default: Suzanne, Lantern, BoomBox samples)")
@@ -533,6 +601,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
     if (base->count() > 0 && o.kind != "far") throw CLI::ValidationError("--base", "only applies to kind 'far'");
+    if (unique->count() > 0 && o.kind != "forest") throw CLI::ValidationError("--unique", "only applies to kind 'forest'");
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : int(ExitCode::kUsage);
   }

@@ -2,7 +2,8 @@
 // before it is read, the harness re-seals what checksums protect (every in-file chunk's CRC-32C, the
 // TOC CRC, the header CRC), so mutations reach the structural checks instead of stopping at a CRC
 // mismatch. Then, as the tools do: rtpack-trace's in-core load and a few rays traced through it (every
-// ISA, both orders), the attribute lookup of --shading on the hits, and rtpack-inspect --verify.
+// ISA, both orders), the attribute lookup of --shading on the hits, the out-of-core tracer at its
+// minimum budget (closest, then any hit with read-ahead), and rtpack-inspect --verify.
 // Any rtp::Error is a clean rejection; crashes, UB, hangs and huge allocations are bugs.
 #include <cmath>
 #include <cstring>
@@ -14,6 +15,7 @@
 #include "reader/attribute_lookup.h"
 #include "package/inspect.h"
 #include "package/package.h"
+#include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 
 namespace {
@@ -54,6 +56,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         }
       const rtp::AttributeLookup lookup(reader);
       for (const auto& h : hits) (void)lookup.shade(h);
+    });
+    rtp::fuzz::run_guarded([&] {  // rtpack-trace --memory-budget: the out-of-core loader and tracer
+      const auto ooc = rtp::open_out_of_core(reader, rtp::minimum_budget(reader));
+      static const std::vector<rtp::fmt::Ray> rays = probe_rays();
+      std::vector<rtp::fmt::Hit> hits(rays.size());
+      std::vector<uint8_t> occluded(rays.size());
+      rtp::PackageTraceOptions opt;
+      ooc->closest(rays.data(), hits.data(), rays.size(), opt);
+      ooc->set_prefetch(true);
+      ooc->any(rays.data(), occluded.data(), rays.size(), opt);
     });
     rtp::fuzz::run_guarded([&] {  // rtpack-inspect --verify --chunks
       rtp::InspectOptions o;
