@@ -6,7 +6,9 @@
 #include <tbb/parallel_for.h>
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -30,7 +32,34 @@ double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 
 }  // namespace
 
-int run_budget_bench(const BudgetBenchConfig& cfg) {
+CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg) {
+  CLI::Option* ooc = app.add_option("--out-of-core", cfg.package,
+                                    "instead: trace the package PKG (converted from the scene) out of core for each --budgets "
+                                    "percentage, culling on and off, against the in-core tracer on the same rays (default: "
+                                    "bounce rays); prints time, bytes read, chunks loaded");
+  app.add_option("--budgets", cfg.budgets_text,
+                 "--out-of-core: comma-separated percentages of the on-demand bytes (default 100,50,25,10,5)")
+      ->needs(ooc);
+  app.add_flag("--direct-io", cfg.direct_io, "--out-of-core: read chunks with O_DIRECT (the page cache does not hide the disk)")
+      ->needs(ooc);
+  app.add_flag("--prefetch", cfg.prefetch, "--out-of-core: read ahead on an I/O thread while a round traces")->needs(ooc);
+  return ooc;
+}
+
+int run_budget_bench(BudgetBenchConfig cfg) {
+  if (!cfg.budgets_text.empty()) {
+    cfg.budgets.clear();
+    for (size_t a = 0; a <= cfg.budgets_text.size();) {
+      const size_t b = std::min(cfg.budgets_text.find(',', a), cfg.budgets_text.size());
+      const std::string item = cfg.budgets_text.substr(a, b - a);
+      a = b + 1;
+      char* end = nullptr;
+      const double v = std::strtod(item.c_str(), &end);
+      if (item.empty() || *end != '\0' || !(v > 0 && v <= 100))
+        throw Error(ExitCode::kUsage, "--budgets: '" + item + "' is not a percentage in (0, 100]");
+      cfg.budgets.push_back(v);
+    }
+  }
   std::unique_ptr<tbb::global_control> limit;
   if (cfg.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, cfg.threads);
   FILE* out = cfg.json ? stderr : stdout;

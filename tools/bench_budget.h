@@ -3,6 +3,7 @@
 // same rays, same run: time, bytes read and chunks loaded per memory budget, with and without DAG
 // culling (Molenaar 2019 §5.3: time and I/O against the cache size). Every out-of-core answer is
 // checked byte for byte against the in-core one.
+#include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@ struct BudgetBenchConfig {
   std::string scene_path, package;
   std::vector<std::string> allow_paths;
   std::vector<double> budgets = {100, 50, 25, 10, 5};  // percent of the package's on-demand bytes
+  std::string budgets_text;                             // --budgets as given (parsed by run_budget_bench)
   std::vector<RayKind> kinds = {RayKind::kBounce};
   size_t rays = 1 << 18;
   uint64_t seed = 1;
@@ -26,8 +28,12 @@ struct BudgetBenchConfig {
   Isa isa = Isa::kScalar;
 };
 
+// Registers --out-of-core PKG (returned, for the caller's excludes), --budgets, --direct-io and --prefetch.
+CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg);
+
 // Prints the table (stdout, or stderr with --json, the records then on stdout). Returns the exit code:
-// kInternal when some out-of-core answer differs from the in-core one.
-int run_budget_bench(const BudgetBenchConfig& cfg);
+// kInternal when some out-of-core answer differs from the in-core one. Throws Error(kUsage) for a bad
+// --budgets list.
+int run_budget_bench(BudgetBenchConfig cfg);
 
 }  // namespace rtp::bench

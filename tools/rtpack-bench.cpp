@@ -507,17 +507,7 @@ int main(int argc, char** argv) {
   convert_flag->excludes(build_stats);
   convert_flag->excludes(all_flag);
   bench::BudgetBenchConfig budget;
-  std::string budgets;
-  auto* ooc_opt = app.add_option("--out-of-core", budget.package,
-                                 "instead: trace the package PKG (converted from the scene) out of core for each --budgets "
-                                 "percentage, culling on and off, against the in-core tracer on the same rays (default: "
-                                 "bounce rays); prints time, bytes read, chunks loaded");
-  app.add_option("--budgets", budgets, "--out-of-core: comma-separated percentages of the on-demand bytes (default 100,50,25,10,5)")
-      ->needs(ooc_opt);
-  app.add_flag("--direct-io", budget.direct_io, "--out-of-core: read chunks with O_DIRECT (the page cache does not hide the disk)")
-      ->needs(ooc_opt);
-  bool prefetch = false;
-  app.add_flag("--prefetch", prefetch, "--out-of-core: read ahead on an I/O thread while a round traces")->needs(ooc_opt);
+  CLI::Option* ooc_opt = bench::add_budget_options(app, budget);
   ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
   bench::DagBenchConfig dag;
   bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
@@ -579,18 +569,9 @@ int main(int argc, char** argv) {
       budget.scene_path = cfg.scene_path;
       budget.allow_paths = cfg.allow_paths;
       budget.threads = threads == "all" ? 0 : cfg.threads[0];
-      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa, budget.prefetch = prefetch;
+      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa;
       if (app.count("--rays")) budget.rays = cfg.rays;
       if (app.count("--kinds")) budget.kinds = cfg.kinds;
-      if (!budgets.empty()) {
-        budget.budgets.clear();
-        for (const std::string& b : split_list(budgets)) {
-          char* end = nullptr;
-          const double v = std::strtod(b.c_str(), &end);
-          if (b.empty() || *end != '\0' || !(v > 0 && v <= 100)) return usage("--budgets: '" + b + "' is not a percentage in (0, 100]");
-          budget.budgets.push_back(v);
-        }
-      }
       return bench::run_budget_bench(budget);
     }
     if (app.count("--dag")) {
