@@ -6,6 +6,7 @@
 #include <regex>
 
 #include "formats/package.h"
+#include "reader/container.h"
 #include "gltf_builder.h"
 #include "tool_run.h"
 
@@ -196,6 +197,63 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
   const ToolResult m = run_tool("rtpack-bench", {(dir / "none.glb").string(), "--convert", "--json"}, dir);
   EXPECT_EQ(m.code, 2);
   EXPECT_EQ(nlohmann::json::parse(m.out)["error"]["code"], 2);
+}
+
+// Every failure under --json is an `error` envelope on stdout, whatever stage refused it (docs/json.md):
+// a command line CLI11 refuses, a tool's own check of its options, and inspect --verify finding problems
+// (which keeps its report beside the error). Without --json, stdout stays empty on a usage error.
+TEST_F(Conventions, UsageErrorsAndFailedVerifyUnderJsonAreEnvelopes) {
+  const std::string suz = (source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string();
+  const std::string pkg = (dir / "s.rtp").string();
+  ASSERT_EQ(run_tool("rtpack-convert", {suz, "-q", "-o", pkg}, dir).code, 0);
+  const struct {
+    std::string tool;
+    std::vector<std::string> args;
+    std::string expect;  // in error.message
+  } runs[] = {
+      {"rtpack-convert", {suz, "--no-such-option"}, "--no-such-option"},
+      {"rtpack-convert", {suz}, "-o OUTPUT is required"},
+      {"rtpack-convert", {suz, "-o", (dir / "x.rtp").string(), "--bvh-width", "4", "--leaf-width", "16"}, "not a supported pair"},
+      {"rtpack-convert", {suz, "--threads"}, "--threads"},
+      {"rtpack-inspect", {pkg, "--no-such-option"}, "--no-such-option"},
+      {"rtpack-trace", {pkg, "--rays"}, "--rays"},
+      {"rtpack-validate", {pkg, "--rays", "many"}, "many"},
+      {"rtpack-bench", {suz, "--kinds", "sideways"}, "sideways"},
+      {"rtpack-bench", {suz, "--width", "7"}, "--width"},
+  };
+  for (const auto& r : runs) {
+    std::vector<std::string> with = r.args;
+    with.insert(with.begin(), "--json");  // first: a value-less option at the end must not take it
+    const ToolResult t = run_tool(r.tool, with, dir);
+    EXPECT_EQ(t.code, 1) << r.tool << ": " << t.err;
+    ASSERT_TRUE(nlohmann::json::accept(t.out)) << r.tool << " stdout: " << t.out;
+    const auto j = nlohmann::json::parse(t.out);
+    EXPECT_EQ(j.value("schema_version", 0), 2) << r.tool;
+    EXPECT_EQ(j["error"]["code"], 1) << r.tool;
+    EXPECT_NE(j["error"]["message"].get<std::string>().find(r.expect), std::string::npos) << r.tool << ": " << t.out;
+    EXPECT_NE(t.err.find(r.expect), std::string::npos) << r.tool << ": the text still reaches stderr: " << t.err;
+    const ToolResult plain = run_tool(r.tool, r.args, dir);
+    EXPECT_EQ(plain.code, 1) << r.tool;
+    EXPECT_EQ(plain.out, "") << r.tool;
+  }
+  EXPECT_EQ(run_tool("rtpack-inspect", {"--version", "--json"}, dir).out.find("error"), std::string::npos);
+
+  // One flipped byte in a chunk, its checksum left alone: --verify reports it and carries the error.
+  {
+    const PackageReader reader(pkg);
+    std::fstream f(pkg, std::ios::binary | std::ios::in | std::ios::out);
+    const uint64_t at = reader.toc()[0].offset + 100;
+    f.seekg(std::streamoff(at));
+    const char c = char(f.get() ^ 0x5A);
+    f.seekp(std::streamoff(at));
+    f.put(c);
+  }
+  const ToolResult v = run_tool("rtpack-inspect", {pkg, "--verify", "--json"}, dir);
+  EXPECT_EQ(v.code, 3) << v.err;
+  const auto vj = nlohmann::json::parse(v.out);
+  EXPECT_EQ(vj["error"]["code"], 3);
+  EXPECT_NE(vj["error"]["message"].get<std::string>().find("checksum mismatch"), std::string::npos) << v.out;
+  EXPECT_GE(vj["problems"]["count"].get<uint64_t>(), 1u);
 }
 
 }  // namespace

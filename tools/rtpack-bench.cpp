@@ -437,6 +437,11 @@ int run(Config& cfg) {
                      {"bytes_per_triangle",
                       double(r.stats.node_bytes + r.stats.block_bytes) / double(std::max<uint64_t>(1, r.stats.primitives))},
                      {"build_s", r.build_seconds}});
+    // Agreement failures (exit 5): the records, then one record carrying the `error` object (docs/json.md).
+    if (failures)
+      out.push_back({{"type", "error"},
+                     {"error", rtp::tools::error_json("rtpack-bench", cfg.scene_path, ExitCode::kInternal,
+                                                      "rtpack disagrees with Embree on " + std::to_string(failures) + " rays")["error"]}});
     for (auto& rec : out) rec.update(rtp::tools::json_stamp("rtpack-bench"));
     std::cout << out.dump(1) << "\n";
   }
@@ -514,11 +519,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : int(ExitCode::kUsage);
+    return tools::parse_error_exit(app, e, "rtpack-bench", argc, argv);
   }
-  auto usage = [](const std::string& msg) {
-    std::cerr << "rtpack-bench: " << msg << "\n";
-    return int(ExitCode::kUsage);
+  auto usage = [&cfg](const std::string& msg) {
+    return tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, ExitCode::kUsage, msg);
   };
   if (all) {
     if (!app.count("--width")) width = "all";

@@ -84,17 +84,16 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : int(rtp::ExitCode::kUsage);
+    return rtp::tools::parse_error_exit(app, e, "rtpack-convert", argc, argv);
   }
   if (!dry_run && output.empty()) {
-    std::cerr << "rtpack-convert: -o OUTPUT is required (or --dry-run)\n";
-    return int(rtp::ExitCode::kUsage);
+    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kUsage, "-o OUTPUT is required (or --dry-run)");
   }
   if (leaf_width == 0) leaf_width = width == 16 ? 8 : width;
   if (!rtp::supported_widths(width, leaf_width)) {
-    std::cerr << "rtpack-convert: --bvh-width " << width << " --leaf-width " << leaf_width
-              << " is not a supported pair (4/4, 8/8, 16/16, 8/4, 16/8)\n";
-    return int(rtp::ExitCode::kUsage);
+    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kUsage,
+                                    "--bvh-width " + std::to_string(width) + " --leaf-width " + std::to_string(leaf_width) +
+                                        " is not a supported pair (4/4, 8/8, 16/16, 8/4, 16/8)");
   }
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);

@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : int(rtp::ExitCode::kUsage);
+    return rtp::tools::parse_error_exit(app, e, "rtpack-inspect", argc, argv);
   }
   try {
     const rtp::PackageReader reader(input);
@@ -244,6 +244,13 @@ int main(int argc, char** argv) {
     nlohmann::json j = r.report;
     j["file"] = rtp::utf8_display(input);  // any bytes in the name: valid JSON
     j.update(rtp::tools::json_stamp("rtpack-inspect"));
+    const std::string failed = std::to_string(r.problems) + (verify ? " failed checks" : " unreadable or malformed chunks");
+    // Problems under --json: the report with its `problems` list, and the `error` object every tool's
+    // failure carries (docs/json.md), so a caller tests one key whatever the tool.
+    if (r.problems && json_out) {
+      const std::string first = r.listed.empty() ? std::string() : ": first: " + r.listed.front();
+      j["error"] = rtp::tools::error_json("rtpack-inspect", input, rtp::ExitCode::kInputInvalid, failed + first)["error"];
+    }
     if (json_out) {
       std::cout << j.dump(2) << "\n";
     } else {
@@ -252,7 +259,7 @@ int main(int argc, char** argv) {
     }
     std::fflush(stdout);
     if (r.problems) {
-      std::cerr << "error: " << input << ": " << r.problems << (verify ? " failed checks" : " unreadable or malformed chunks") << "\n";
+      std::cerr << "error: " << input << ": " << failed << "\n";
       return int(rtp::ExitCode::kInputInvalid);
     }
   } catch (const rtp::Error& e) {

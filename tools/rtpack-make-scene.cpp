@@ -503,7 +503,7 @@ int main(int argc, char** argv) {
     if (base->count() > 0 && o.kind != "far") throw CLI::ValidationError("--base", "only applies to kind 'far'");
     if (unique->count() > 0 && o.kind != "forest") throw CLI::ValidationError("--unique", "only applies to kind 'forest'");
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : int(ExitCode::kUsage);
+    return rtp::tools::parse_error_exit(app, e, "rtpack-make-scene", argc, argv);
   }
   try {
     return run(o);

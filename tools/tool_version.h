@@ -45,19 +45,32 @@ inline nlohmann::json json_stamp(const char* tool) {
 // A failure: "error: INPUT: MESSAGE" on stderr, and with --json also on stdout as
 // {"schema_version", "tool_version", "error": {"code", "input", "pointer", "message"}} where pointer is the
 // JSON pointer that starts the message (glTF errors, e.g. "/nodes/0/mesh") or null. Returns the exit code.
+inline nlohmann::json error_json(const char* tool, const std::string& input, ExitCode code, const std::string& message) {
+  nlohmann::json pointer = nullptr;
+  if (!message.empty() && message[0] == '/') {
+    const size_t colon = message.find(": ");
+    if (colon != std::string::npos) pointer = utf8_display(message.substr(0, colon));
+  }
+  nlohmann::json j = json_stamp(tool);
+  j["error"] = {{"code", int(code)}, {"input", utf8_display(input)}, {"pointer", pointer}, {"message", utf8_display(message)}};
+  return j;
+}
+
 inline int report_error(const char* tool, bool json, const std::string& input, ExitCode code, const std::string& message) {
   std::cerr << "error: " << input << ": " << message << "\n";
-  if (json) {
-    nlohmann::json pointer = nullptr;
-    if (!message.empty() && message[0] == '/') {
-      const size_t colon = message.find(": ");
-      if (colon != std::string::npos) pointer = utf8_display(message.substr(0, colon));
-    }
-    nlohmann::json j = json_stamp(tool);
-    j["error"] = {{"code", int(code)}, {"input", utf8_display(input)}, {"pointer", pointer}, {"message", utf8_display(message)}};
-    std::cout << j.dump(2) << "\n";
-  }
+  if (json) std::cout << error_json(tool, input, code, message).dump(2) << "\n";
   return int(code);
+}
+
+// A command line CLI11 refused (an unknown option, a missing or invalid value): CLI11's text on stderr as
+// always, exit 1; and when --json is among the arguments, the error envelope on stdout too (docs/json.md),
+// with "input" empty since no input was accepted. --help and --version exit 0 and print no envelope.
+inline int parse_error_exit(CLI::App& app, const CLI::ParseError& e, const char* tool, int argc, const char* const* argv) {
+  if (app.exit(e) == 0) return 0;
+  bool json = false;
+  for (int i = 1; i < argc; ++i) json = json || std::string(argv[i]) == "--json";
+  if (json) std::cout << error_json(tool, "", ExitCode::kUsage, e.what()).dump(2) << "\n";
+  return int(ExitCode::kUsage);
 }
 
 }  // namespace rtp::tools
