@@ -25,7 +25,7 @@
 #include "scene/import.h"
 #include "trace/trace.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace rtp;
 namespace fs = std::filesystem;
@@ -223,4 +223,4 @@ INSTANTIATE_TEST_SUITE_P(Shared, Agreement,
                                            SceneCase{"SharedForest2k", "scenes/forest-2k.glb", true}),
                          [](const auto& info) { return std::string(info.param.name); });
 
-}  // namespace
+}}  // namespace

@@ -15,7 +15,7 @@
 
 #include "bench_run.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -104,4 +104,4 @@ TEST(BenchDag, RecordsAreCompleteAndConsistent) {
   EXPECT_EQ(sweeps, want);
 }
 
-}  // namespace
+}}  // namespace

@@ -13,7 +13,7 @@
 #include "test_bvh_check.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using bvhtest::check_mesh_bvh;
 
@@ -317,5 +317,5 @@ TEST(BvhBuild, LargestLeavesFitSixteenBlocks) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

@@ -10,7 +10,7 @@
 #include "test_bvh_check.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 const fs::path kSamples = fs::path(RTP_SOURCE_DIR) / "samples";
@@ -83,5 +83,5 @@ TEST(BvhFiles, SharedAssetsIfPresent) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

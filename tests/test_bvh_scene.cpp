@@ -13,7 +13,7 @@
 #include "test_bvh_check.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using bvhtest::DBox;
@@ -262,5 +262,5 @@ TEST(BvhScene, TransformBoundsContainCorners) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

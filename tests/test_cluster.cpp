@@ -9,7 +9,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 void check_plan(const Scene& s, const Plan& p) {
   // Instances of instanced meshes: exactly once over all points.
@@ -151,5 +151,5 @@ TEST(Cluster, DegenerateAllObjectsAtOnePoint) {
   std::filesystem::remove_all(dir);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

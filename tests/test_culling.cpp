@@ -36,7 +36,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 constexpr float kInfF = std::numeric_limits<float>::infinity();
@@ -482,5 +482,5 @@ TEST_F(Culling, ThinVoxelizationHasFalseCulls) {
   EXPECT_GE(scenes_with_false_culls, 5u);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

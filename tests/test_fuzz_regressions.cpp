@@ -13,7 +13,7 @@
 
 #include "tests/fuzz/reseal.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -109,4 +109,4 @@ TEST_F(FuzzRegressions, RayInputsTraceCleanly) {
            {0, 3}, f);
 }
 
-}  // namespace
+}}  // namespace

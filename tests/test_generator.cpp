@@ -23,7 +23,7 @@
 #include "core/math.h"
 #include "scene/import.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -418,4 +418,4 @@ TEST_F(Generator, ImportFar) {
   }
 }
 
-}  // namespace
+}}  // namespace

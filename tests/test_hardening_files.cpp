@@ -13,7 +13,7 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -415,5 +415,5 @@ TEST_F(HardeningFiles, NonUtf8FileNamesWork) {
   EXPECT_EQ(fs::file_size(out / "h\xFF.bin"), 4u * 20u);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

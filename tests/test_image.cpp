@@ -12,7 +12,7 @@
 #include "image/image.h"
 
 namespace rtp::image {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -145,5 +145,5 @@ TEST(Image, ParseShade) {
   EXPECT_FALSE(parse_shade("Normal", &s));
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::image

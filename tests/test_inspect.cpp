@@ -25,7 +25,7 @@
 #include "voxel/voxel.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -504,5 +504,5 @@ TEST_F(Inspect, BvhStatisticsMatchTheBuilder) {
     }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

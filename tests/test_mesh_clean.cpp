@@ -10,7 +10,7 @@
 #include "mesh/shapes.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 void expect_same_mesh(const Mesh& a, const Mesh& b) {
   EXPECT_EQ(a.positions, b.positions);
@@ -453,5 +453,5 @@ TEST(MeshClean, RejectsAttributeSizeMismatch) {
   EXPECT_NO_THROW(clean_mesh(ok));
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

@@ -14,7 +14,7 @@
 #endif
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 uint64_t pow4(int n) { return uint64_t(1) << (2 * n); }
 
@@ -386,5 +386,5 @@ TEST(MeshSubdivide, CleanAndSubdivideSuzanne) {
 }
 #endif
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

@@ -22,7 +22,7 @@
 #include "oracle/reference.h"
 #include "scene/import.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace rtp;
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -403,4 +403,4 @@ TEST(OracleCompare, Classification) {
   EXPECT_EQ(check_any_hit(rays.data(), ref.data(), occ_bad, 4).failures, 2u);
 }
 
-}  // namespace
+}}  // namespace

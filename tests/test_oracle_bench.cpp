@@ -16,7 +16,7 @@
 #include "bench_run.h"
 #include "package/write_package.h"
 
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -280,4 +280,4 @@ TEST_F(ConvertBench, BadInputAndUsage) {
   EXPECT_EQ(run(gallery + " --convert --threads 0").code, 1);
 }
 
-}  // namespace
+}}  // namespace

@@ -25,7 +25,7 @@
 #include "trace/package_tracer.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -362,5 +362,5 @@ TEST(OutOfCore, TopLevelParentPointersAreChecked) {
   fs::remove_all(dir);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

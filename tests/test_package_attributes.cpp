@@ -23,7 +23,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -431,5 +431,5 @@ TEST_F(Attributes, VerifyNamesEveryTamperedAttributeChunk) {
   EXPECT_NE(v.out.find("attributes disagree with the mesh table's flags for mesh 1"), std::string::npos) << v.out;
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -10,7 +10,7 @@
 #include "package/package.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -178,5 +178,5 @@ TEST_F(Container, NotAPackage) {
   EXPECT_EQ(open_and_read_all((dir / "x.rtp").string()), "not an rtpack package (bad magic)");
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -22,7 +22,7 @@
 #include "hostile_package.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using fmt::ChildRef;
 using fmt::SectionType;
@@ -295,5 +295,5 @@ TEST_F(Hostile, CullingGridIsCheckedAtDecode) {  // voxel::check_dags runs when 
   expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"});  // plain inspect too
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -18,7 +18,7 @@
 #include "reader/attribute_lookup.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using fmt::SectionType;
 
@@ -301,5 +301,5 @@ TEST_F(Limits, PlainTraceExitsThreeOnHostilePackages) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

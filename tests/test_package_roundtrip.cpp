@@ -20,7 +20,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -312,5 +312,5 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

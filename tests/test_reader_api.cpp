@@ -17,7 +17,7 @@
 #include "trace/package_tracer.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -209,5 +209,5 @@ TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -8,7 +8,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -245,5 +245,5 @@ TEST_F(Feature, Determinism) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

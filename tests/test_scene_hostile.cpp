@@ -16,7 +16,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -341,5 +341,5 @@ TEST_F(HostileMetadata, CameraWithoutYfov) {
   EXPECT_NE(r.err.find("/cameras/0/yfov: missing"), std::string::npos) << r.err;
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -8,7 +8,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using Tri = std::array<Vec3d, 3>;
@@ -201,5 +201,5 @@ TEST(ImportReal, Forest2kInstancedTriangleCount) {
   EXPECT_GT(s.instanced_triangles(), 100 * s.unique_triangles() / 10);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -10,7 +10,7 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -255,5 +255,5 @@ TEST_F(Reject, BitFlippedSamplesNeverCrash) {
   EXPECT_GT(rejected, 0);  // the flips must hit something
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -11,7 +11,7 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -256,5 +256,5 @@ TEST_F(Conventions, UsageErrorsAndFailedVerifyUnderJsonAreEnvelopes) {
   EXPECT_GE(vj["problems"]["count"].get<uint64_t>(), 1u);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -7,7 +7,7 @@
 #include "gltf_builder.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -123,5 +123,5 @@ TEST_F(Convert, WarningsGoToStderr) {
   EXPECT_TRUE(r.err.empty());
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

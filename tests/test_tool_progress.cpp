@@ -12,7 +12,7 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -118,5 +118,5 @@ TEST_F(ConvertProgress, VerboseAddsStageLinesAndTheDefaultDoesNot) {
   EXPECT_EQ(slurp_file(dir / "v.rtp"), slurp_file(dir / "d.rtp"));
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

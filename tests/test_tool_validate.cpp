@@ -23,7 +23,7 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -214,5 +214,5 @@ TEST(TraceOutOfCore, SameHitsAndTheSameJsonKeys) {
   fs::remove_all(dir);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -17,7 +17,7 @@
 #include "test_trace_paths.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::check_all_paths;
 using trace_test::PathResult;
@@ -87,5 +87,5 @@ INSTANTIATE_TEST_SUITE_P(Samples, TraceBvh,
                          ::testing::Values("khronos/Lantern/glTF/Lantern.gltf", "generated/gallery.glb"),
                          [](const auto& info) { return info.index == 0 ? std::string("Lantern") : std::string("Gallery"); });
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

@@ -12,7 +12,7 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -173,11 +173,11 @@ TEST_F(TraceImage, SizeParsing) {
   EXPECT_EQ(j["image"]["height"].get<int>(), 5);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 // glTF 2.0 §5.13: ymag MUST NOT be zero and SHOULD NOT be negative. The importer accepts a negative one, so
 // the image does too (by its size); zero is refused naming the camera.
@@ -213,5 +213,5 @@ TEST(TraceImageCamera, NegativeYmagIsItsSizeAndZeroIsRefused) {
   fs::remove_all(dir);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

@@ -11,7 +11,7 @@
 #include "trace/kernels.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::kInf;
 using trace_test::Rng;
@@ -428,5 +428,5 @@ TEST(TraceKernels, TriangleTIsAccurateOnGrazingNeedles) {
   EXPECT_LT(worst, 1e-5);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

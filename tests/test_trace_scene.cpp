@@ -11,7 +11,7 @@
 #include "test_trace_util.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace trace_test;
 
@@ -271,5 +271,5 @@ TYPED_TEST(TraceScene, DeepTreesWithinTheLimitAreExactBeyondItSafe) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

@@ -12,7 +12,7 @@
 #include "test_trace_util.h"
 
 namespace rtp {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace trace_test;
 
@@ -132,5 +132,5 @@ TYPED_TEST(TraceWatertight, InsideRaysWithSpecialDirections) {
   }
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp

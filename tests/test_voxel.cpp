@@ -16,7 +16,7 @@
 #include "voxel_rng.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using voxel::DagHit;
 using voxel::DagPool;
@@ -293,5 +293,5 @@ TEST(VoxelVoxelize, PlanesAndSingleCells) {
   EXPECT_LE(thin.count(), 1u);  // one cell of the two
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

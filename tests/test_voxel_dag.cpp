@@ -16,7 +16,7 @@
 #include "voxel_rng.h"
 
 namespace rtp::test {
-namespace {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using voxel::DagHit;
 using voxel::DagPool;
@@ -440,5 +440,5 @@ TEST(VoxelDagQuery, SingleCellAndSpecialRoots) {
   EXPECT_LE(full.t_entry, 10.0);
 }
 
-}  // namespace
+}}  // namespace
 }  // namespace rtp::test

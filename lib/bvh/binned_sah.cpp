@@ -67,7 +67,7 @@ struct VBox {
 };
 
 // half_area(Box3f) of an SSE box without the round trip through memory: the same double arithmetic.
-inline double half_area(__m128 lo, __m128 hi) {
+inline double half_area_sse(__m128 lo, __m128 hi) {
   const __m128d exy = _mm_sub_pd(_mm_cvtps_pd(hi), _mm_cvtps_pd(lo));
   const __m128d ez = _mm_sub_sd(_mm_cvtps_pd(_mm_movehl_ps(hi, hi)), _mm_cvtps_pd(_mm_movehl_ps(lo, lo)));
   const double x = _mm_cvtsd_f64(exy), y = _mm_cvtsd_f64(_mm_unpackhi_pd(exy, exy)), z = _mm_cvtsd_f64(ez);
@@ -240,7 +240,7 @@ Split Splitter::find(const Range& r) const {
     for (uint32_t i = nb - 1; i > 0; --i) {
       acc.add(bins.box[a][i].lo, bins.box[a][i].hi);
       cnt += bins.count[a][i];
-      right_area[i] = half_area(acc.lo, acc.hi);
+      right_area[i] = half_area_sse(acc.lo, acc.hi);
       right_count[i] = cnt;
     }
     acc = VBox{};
@@ -249,7 +249,7 @@ Split Splitter::find(const Range& r) const {
       acc.add(bins.box[a][i - 1].lo, bins.box[a][i - 1].hi);
       cnt += bins.count[a][i - 1];
       if (cnt == 0 || right_count[i] == 0) continue;
-      const double left_area = half_area(acc.lo, acc.hi);
+      const double left_area = half_area_sse(acc.lo, acc.hi);
       const double cost = left_area * cnt + right_area[i] * right_count[i];
       if (cost < best_cost) {
         best_cost = cost;

@@ -22,6 +22,9 @@ namespace rtp::bvh {
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 constexpr uint32_t kMaxBins = 64;
 
+// Leaf blocks of width b for n primitives.
+inline uint32_t blocks(uint32_t n, uint32_t b) { return (n + b - 1) / b; }
+
 // ---- boxes ---------------------------------------------------------------------------------------
 
 inline void grow(Box3f& b, const float lo[3], const float hi[3]) {

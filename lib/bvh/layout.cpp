@@ -26,7 +26,6 @@ namespace {
 
 using fmt::ChildRef;
 
-uint32_t blocks(uint32_t n, uint32_t b) { return (n + b - 1) / b; }
 
 // Molenaar 2019 §4.1: per ray octant, the filled lanes front to back along the octant's diagonal
 // (key ascending, ties by lane), then the empty lanes. Insertion sort: at most 16 lanes.

@@ -20,7 +20,6 @@
 namespace rtp::bvh {
 namespace {
 
-uint32_t blocks(uint32_t n, uint32_t b) { return (n + b - 1) / b; }
 
 template <int W>
 class SplitBuilder {

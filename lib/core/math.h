@@ -8,6 +8,8 @@
 
 namespace rtp {
 
+inline constexpr float kInf = std::numeric_limits<float>::infinity();
+
 struct Vec3f {
   float x = 0, y = 0, z = 0;
   float operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }

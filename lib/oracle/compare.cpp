@@ -1,3 +1,4 @@
+#include "core/math.h"
 #include "oracle/compare.h"
 
 #include <algorithm>
@@ -12,7 +13,6 @@
 namespace rtp {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool is_hit(const fmt::Hit& h) { return h.t < kInf; }  // NaN t is rejected first by classify_hit
 

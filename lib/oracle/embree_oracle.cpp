@@ -1,3 +1,4 @@
+#include "core/math.h"
 #include "oracle/embree_oracle.h"
 
 #include <embree3/rtcore.h>
@@ -21,7 +22,6 @@ namespace {
 
 constexpr size_t kGrain = 256;  // rays per TBB task
 constexpr size_t kBatch = 64;   // rays per rtcIntersect1M call (stack buffer)
-constexpr float kInf = std::numeric_limits<float>::infinity();
 
 struct ErrorSink {
   std::mutex mutex;

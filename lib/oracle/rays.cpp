@@ -1,3 +1,4 @@
+#include "core/math.h"
 #include "oracle/rays.h"
 
 #include <algorithm>
@@ -14,7 +15,6 @@
 namespace rtp {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr double kPi = std::numbers::pi;
 
 // Counter-based randomness: one independent stream per (seed, stream tag, index).

@@ -1,4 +1,5 @@
 // One conversion: import -> prepare -> batching points (Molenaar 2019 §3.1) -> chunks.
+#include "core/clock.h"
 #include "package/convert.h"
 
 #include <chrono>
@@ -12,7 +13,6 @@
 namespace rtp {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 StageCost cost_since(Clock::time_point t0) {
   return {std::chrono::duration<double>(Clock::now() - t0).count(), peak_rss_mib()};
 }

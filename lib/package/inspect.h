@@ -134,6 +134,8 @@ namespace inspect_detail {
 
 using Pair = std::array<uint32_t, 2>;
 
+inline std::string str(uint64_t v) { return std::to_string(v); }
+
 // The resident sections as read (a flag is false when its chunk is missing or unreadable).
 struct Resident {
   bool meta_ok = false, top_ok = false, descs_ok = false, instances_ok = false, meshes_ok = false, source_ok = false;

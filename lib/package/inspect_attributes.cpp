@@ -11,7 +11,6 @@
 namespace rtp::inspect_detail {
 namespace {
 
-std::string str(uint64_t v) { return std::to_string(v); }
 
 uint32_t geometry_kind(uint32_t attr_kind) {
   return attr_kind == uint32_t(fmt::ChunkKind::kSegmentAttributes) ? uint32_t(fmt::ChunkKind::kMeshSegment)

@@ -16,7 +16,6 @@
 namespace rtp::inspect_detail {
 namespace {
 
-std::string str(uint64_t v) { return std::to_string(v); }
 
 uint32_t grid_levels(uint32_t resolution) {  // levels above the 4^3 leaves: log2(R / 4)
   return uint32_t(std::countr_zero(resolution)) - 2;

@@ -16,7 +16,6 @@ using fmt::ChunkKind;
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 constexpr float kFInf = std::numeric_limits<float>::infinity();
 
-std::string str(uint64_t v) { return std::to_string(v); }
 std::string triangles(uint64_t n) { return str(n) + (n == 1 ? " triangle" : " triangles"); }
 
 Box3d box_of(const float lo[3], const float hi[3]) {

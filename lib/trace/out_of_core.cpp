@@ -1,4 +1,6 @@
 // The batched out-of-core tracer (Molenaar 2019 §4.1, §4.3); see out_of_core.h.
+#include "core/clock.h"
+#include "core/math.h"
 #include "trace/out_of_core.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -22,7 +24,6 @@
 namespace rtp {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 constexpr size_t kBlock = 64;
 std::string format_mib(uint64_t b) {
@@ -30,8 +31,6 @@ std::string format_mib(uint64_t b) {
   std::snprintf(t, sizeof t, "%.1f MiB", double(b) / 1048576.0);
   return t;
 }  // rays traced together at one batching point (one kernel call)
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 // What the tracer needs of the file beside the cache: chunk indices per batching point and segment.
 struct Layout {

@@ -1,5 +1,7 @@
 // In-core package tracing: chunk views -> per batching point SceneView; top level traversed front to
 // back in double precision (Molenaar 2019 §4.1 top-level BVH over batching points).
+#include "core/clock.h"
+#include "core/math.h"
 #include "trace/package_tracer.h"
 
 #include <algorithm>
@@ -29,9 +31,6 @@ bool ray_is_valid(const fmt::Ray& r) {
 
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 template <int W, int B>
 struct Point {

@@ -9,7 +9,7 @@
 namespace rtp::voxel {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kInfD = std::numeric_limits<double>::infinity();
 int grid_levels(uint32_t resolution) { return std::countr_zero(resolution / 4); }
 
 }  // namespace
@@ -56,7 +56,7 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
 DagHit grid_first_entry_reference(const Grid& g, double delta, const double org[3], const double dir[3], double tnear,
                                   double tfar) {
   DagHit out;
-  double best = kInf;
+  double best = kInfD;
   for (uint32_t z = 0; z < g.resolution; ++z)
     for (uint32_t y = 0; y < g.resolution; ++y)
       for (uint32_t x = 0; x < g.resolution; ++x) {
@@ -76,7 +76,7 @@ DagHit grid_first_entry_reference(const Grid& g, double delta, const double org[
         }
         if (hit && t0 <= t1) best = std::min(best, t0);
       }
-  if (best < kInf) out = {false, best};
+  if (best < kInfD) out = {false, best};
   return out;
 }
 
