@@ -20,6 +20,7 @@
 #include "oracle/rays.h"
 #include "package/convert.h"
 #include "package_patch.h"
+#include "reader/chunk_cache.h"
 #include "reader/chunk_io.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
@@ -278,6 +279,56 @@ TEST(OutOfCore, SectionCountStreamsTheChunk) {
       EXPECT_NE(std::string(ex.what()).find("instance table 0"), std::string::npos) << ex.what();
       EXPECT_NE(std::string(ex.what()).find("checksum mismatch"), std::string::npos) << ex.what();
     }
+  }
+  fs::remove_all(dir);
+}
+
+// An evicted chunk's buffer takes the next chunk read when it fits (within 1/16): no fresh pages. The bytes
+// are the chunk's own (compared with a plain read), and the cache's accounting (capacity) stays in budget.
+TEST(OutOfCore, EvictedBuffersAreReusedAndHoldTheNewChunk) {
+  const fs::path dir = temp_dir("ooc_recycle");
+  const std::string pkg = (dir / "forest.rtp").string();
+  convert(samples()[1], pkg);
+  const PackageReader reader(pkg);
+  std::vector<uint32_t> points;
+  for (size_t i = 0; i < reader.toc().size(); ++i)
+    if (reader.toc()[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) points.push_back(uint32_t(i));
+  ASSERT_GE(points.size(), 3u);
+  std::sort(points.begin(), points.end(), [&](uint32_t a, uint32_t b) { return reader.toc()[a].raw_size < reader.toc()[b].raw_size; });
+  // Two points of different sizes within 1/16 of each other: the smaller fits in the larger's buffer.
+  size_t k = 1;
+  auto size_of = [&](size_t at) { return reader.toc()[points[at]].raw_size; };
+  while (k < points.size() && !(size_of(k - 1) < size_of(k) && size_of(k) <= size_of(k - 1) + size_of(k - 1) / 16)) ++k;
+  ASSERT_LT(k, points.size()) << "no two batching points within 1/16 in size";
+  const uint32_t big = points[k], next = points[k - 1];
+  const uint64_t big_size = reader.toc()[big].raw_size;
+  ChunkCache cache(reader, big_size + big_size / 16);
+  auto no_check = [](uint32_t, const AlignedBytes&) {};
+  cache.acquire({big}, no_check);
+  const uint8_t* first = cache.bytes(big).data();
+  EXPECT_EQ(cache.bytes(big), reader.read(big));
+  cache.release();
+  cache.acquire({next}, no_check);
+  EXPECT_FALSE(cache.resident(big));
+  EXPECT_EQ(cache.bytes(next), reader.read(next));
+  EXPECT_EQ(cache.bytes(next).data(), first) << "the evicted buffer was not reused";
+  EXPECT_LE(cache.stats().peak_resident_bytes, cache.budget());
+  cache.release();
+  // The smallest point after the largest one: far below the buffer, so a fresh buffer of its own size.
+  const uint32_t small = points.front();
+  ASSERT_LT(reader.toc()[small].raw_size * 2, reader.toc()[points.back()].raw_size);
+  {
+    const uint32_t next = points.back();
+    const uint64_t next_size = reader.toc()[next].raw_size;
+    ChunkCache c2(reader, next_size);
+    c2.acquire({next}, no_check);
+    const uint8_t* held = c2.bytes(next).data();
+    c2.release();
+    c2.acquire({small}, no_check);
+    EXPECT_EQ(c2.bytes(small), reader.read(small));
+    EXPECT_EQ(c2.bytes(small).capacity(), c2.bytes(small).size());
+    EXPECT_NE(c2.bytes(small).data(), held);
+    EXPECT_LE(c2.stats().peak_resident_bytes, c2.budget());
   }
   fs::remove_all(dir);
 }

@@ -19,6 +19,10 @@ struct ChunkCache::Prefetch {
   std::thread thread;
 };
 
+namespace {
+constexpr uint64_t kSlack = 16;  // a recycled buffer holds at most 1/kSlack more than its chunk
+}  // namespace
+
 ChunkCache::ChunkCache(const PackageReader& reader, uint64_t budget_bytes) : reader_(reader), budget_(budget_bytes) {}
 
 ChunkCache::~ChunkCache() {
@@ -38,7 +42,7 @@ void ChunkCache::join_prefetch() {
 void ChunkCache::prefetch(const std::vector<uint32_t>& toc_indices) {
   join_prefetch();  // (none runs here: acquire() joined it)
   uint64_t pinned = 0;
-  for (const auto& [index, e] : entries_) pinned += e.pinned ? e.bytes.size() : 0;
+  for (const auto& [index, e] : entries_) pinned += e.pinned ? held(e.bytes) : 0;
   for (uint32_t i : staged_indices_) pinned += cost(i);
   auto p = std::make_unique<Prefetch>();
   uint64_t bytes = 0;
@@ -80,13 +84,14 @@ void ChunkCache::release() {
 }
 
 // Least recently used first, pinned chunks skipped, until `incoming` more bytes fit in the budget.
-void ChunkCache::evict_until(uint64_t incoming) {
+void ChunkCache::evict_until(uint64_t incoming, std::vector<AlignedBytes>* recycle) {
   for (auto it = lru_.end(); it != lru_.begin() && stats_.resident_bytes + in_flight_ + incoming > budget_;) {
     --it;
     auto e = entries_.find(*it);
     if (e->second.pinned) continue;
-    stats_.resident_bytes -= e->second.bytes.size();
+    stats_.resident_bytes -= held(e->second.bytes);
     ++stats_.evictions;
+    if (recycle) recycle->push_back(std::move(e->second.bytes));
     entries_.erase(e);
     it = lru_.erase(it);
   }
@@ -96,7 +101,7 @@ void ChunkCache::insert(uint32_t i, AlignedBytes bytes, bool pinned) {
   stats_.bytes_read += reader_.toc()[i].stored_size;
   stats_.raw_bytes_loaded += bytes.size();
   ++stats_.loads;
-  stats_.resident_bytes += bytes.size();
+  stats_.resident_bytes += held(bytes);
   lru_.push_front(i);
   Entry& e = entries_[i];
   e.bytes = std::move(bytes);
@@ -137,16 +142,34 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
     it->second.pinned = true;
     lru_.splice(lru_.begin(), lru_, it->second.lru);  // most recently used
   }
-  for (const auto& [index, e] : entries_) pinned += e.pinned ? e.bytes.size() : 0;
+  for (const auto& [index, e] : entries_) pinned += e.pinned ? held(e.bytes) : 0;
   if (pinned + incoming > budget_)
     throw Error(ExitCode::kUsage, "memory budget of " + std::to_string(budget_) + " bytes is too small: this round needs " +
                                       std::to_string(pinned + incoming) + " bytes of chunks at once");
-  evict_until(incoming);
+  // The evicted chunks' buffers take the new ones (the smallest that fits, at most 1/kSlack larger): their
+  // pages are mapped already, where a fresh buffer of megabytes is faulted in and zeroed page by page.
+  // Assigned before the reads, and the unused ones freed, so that memory never holds both.
+  std::vector<AlignedBytes> spare;
+  evict_until(incoming, &spare);
   if (missing.empty()) return;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<AlignedBytes> loaded(missing.size());
+  for (size_t k = 0; k < missing.size(); ++k) {
+    const uint64_t need = cost(missing[k]);
+    size_t best = spare.size();
+    for (size_t j = 0; j < spare.size(); ++j)
+      if (spare[j].capacity() >= need && spare[j].capacity() <= need + need / kSlack &&
+          (best == spare.size() || spare[j].capacity() < spare[best].capacity()))
+        best = j;
+    if (best == spare.size()) continue;
+    loaded[k] = std::move(spare[best]);
+    spare[best] = std::move(spare.back());
+    spare.pop_back();
+  }
+  spare.clear();
+  spare.shrink_to_fit();
   tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
-    loaded[k] = reader_.read(missing[k]);
+    reader_.read_into(missing[k], loaded[k]);
     on_load(missing[k], loaded[k]);
   }, tbb::simple_partitioner());
   stats_.load_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -65,9 +65,14 @@ class ChunkCache {
     std::list<uint32_t>::iterator lru;  // position in lru_ (front = most recently used)
     bool pinned = false;
   };
-  void evict_until(uint64_t incoming);
+  // Evicts least recently used unpinned chunks until `incoming` bytes fit; their buffers go to `recycle`
+  // when given (acquire() reads the new chunks into them), else are freed.
+  void evict_until(uint64_t incoming, std::vector<AlignedBytes>* recycle = nullptr);
   void join_prefetch();  // waits for the background reads; rethrows their error
   void insert(uint32_t index, AlignedBytes bytes, bool pinned);
+  // What a resident chunk counts against the budget: its decompressed bytes. A recycled buffer may hold
+  // up to 1/16 more (allocator slack, like malloc's own: in the peak RSS, not in the budget).
+  static uint64_t held(const AlignedBytes& b) { return b.size(); }
   std::vector<uint32_t> staged_indices_;  // read ahead, joined, not yet inserted
   std::vector<AlignedBytes> staged_bytes_;
   struct Prefetch;

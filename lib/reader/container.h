@@ -38,6 +38,9 @@ class PackageReader {
   // Reads, checks the CRC and decompresses chunk toc()[index] into a 64-byte aligned buffer.
   // Throws naming the chunk.
   AlignedBytes read(size_t index) const;
+  // The same into `out`, reusing its capacity (the chunk cache recycles evicted buffers: no fresh pages
+  // to fault in and zero). On a throw `out` holds garbage.
+  void read_into(size_t index, AlignedBytes& out) const;
   // Reads and checks the CRC only (no decompression).
   void verify(size_t index) const;
   // The element count of section `type` of chunk toc()[index] (elements of `elem_size` bytes, inside

@@ -164,6 +164,12 @@ void PackageReader::verify(size_t index) const {
 }
 
 AlignedBytes PackageReader::read(size_t index) const {
+  AlignedBytes out;
+  read_into(index, out);
+  return out;
+}
+
+void PackageReader::read_into(size_t index, AlignedBytes& out) const {
   const fmt::TocEntry& e = toc_[index];
   AlignedBytes stored = read_stored(index);
   const uint32_t c = crc32c(stored.data(), stored.size());
@@ -172,7 +178,8 @@ AlignedBytes PackageReader::read(size_t index) const {
                  "): corrupt chunk");
   if (e.compression == uint32_t(fmt::Compression::kNone)) {
     if (e.raw_size != e.stored_size) fail_invalid(chunk_label(e, index) + ": raw size differs from stored size");
-    return stored;
+    out.swap(stored);
+    return;
   }
   if (e.compression != uint32_t(fmt::Compression::kZstd))
     fail_invalid(chunk_label(e, index) + ": unknown compression " + std::to_string(e.compression));
@@ -193,7 +200,8 @@ AlignedBytes PackageReader::read(size_t index) const {
                  " stored bytes (the limit of formats/SPEC.md §3)");
   ZSTD_DCtx* dctx = ZSTD_createDCtx();
   if (!dctx) throw std::bad_alloc();
-  AlignedBytes out;
+  const size_t reuse = out.capacity();  // memory the caller already holds: no new commitment
+  out.clear();
   ZSTD_inBuffer in{stored.data(), stored.size(), 0};
   size_t done = 0, ret = 1;
   std::string error;
@@ -204,7 +212,7 @@ AlignedBytes PackageReader::read(size_t index) const {
         break;
       }
       // First 16x the stored bytes (at least 1 MiB: most chunks fit at once), then doubling.
-      const uint64_t want = std::max<uint64_t>({uint64_t(1) << 20, 16 * e.stored_size, 2 * uint64_t(out.size())});
+      const uint64_t want = std::max<uint64_t>({uint64_t(1) << 20, 16 * e.stored_size, 2 * uint64_t(out.size()), reuse});
       out.resize(size_t(std::min<uint64_t>(e.raw_size, want)));
     }
     ZSTD_outBuffer ob{out.data(), out.size(), done};
@@ -222,7 +230,9 @@ AlignedBytes PackageReader::read(size_t index) const {
   ZSTD_freeDCtx(dctx);
   if (error.empty() && (done != e.raw_size || in.pos != in.size)) error = "short";
   if (!error.empty()) fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" + error + ")");
-  return out;
+  // Growing by doubling (a chunk over 16x its stored size) can leave up to twice the bytes allocated:
+  // give that slack back (the cache holds these buffers under its budget).
+  if (out.capacity() - out.size() > out.size() / 16 && out.capacity() > reuse) out.shrink_to_fit();
 }
 
 uint64_t PackageReader::first_nonzero(uint64_t offset, uint64_t size) const {
