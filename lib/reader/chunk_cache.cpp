@@ -42,7 +42,7 @@ void ChunkCache::join_prefetch() {
 void ChunkCache::prefetch(const std::vector<uint32_t>& toc_indices) {
   join_prefetch();  // (none runs here: acquire() joined it)
   uint64_t pinned = 0;
-  for (const auto& [index, e] : entries_) pinned += e.pinned ? held(e.bytes) : 0;
+  for (const auto& [index, e] : entries_) pinned += e.pinned ? e.bytes.size() : 0;
   for (uint32_t i : staged_indices_) pinned += cost(i);
   auto p = std::make_unique<Prefetch>();
   uint64_t bytes = 0;
@@ -89,7 +89,7 @@ void ChunkCache::evict_until(uint64_t incoming, std::vector<AlignedBytes>* recyc
     --it;
     auto e = entries_.find(*it);
     if (e->second.pinned) continue;
-    stats_.resident_bytes -= held(e->second.bytes);
+    stats_.resident_bytes -= e->second.bytes.size();
     ++stats_.evictions;
     if (recycle) recycle->push_back(std::move(e->second.bytes));
     entries_.erase(e);
@@ -101,7 +101,7 @@ void ChunkCache::insert(uint32_t i, AlignedBytes bytes, bool pinned) {
   stats_.bytes_read += reader_.toc()[i].stored_size;
   stats_.raw_bytes_loaded += bytes.size();
   ++stats_.loads;
-  stats_.resident_bytes += held(bytes);
+  stats_.resident_bytes += bytes.size();
   lru_.push_front(i);
   Entry& e = entries_[i];
   e.bytes = std::move(bytes);
@@ -142,7 +142,7 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
     it->second.pinned = true;
     lru_.splice(lru_.begin(), lru_, it->second.lru);  // most recently used
   }
-  for (const auto& [index, e] : entries_) pinned += e.pinned ? held(e.bytes) : 0;
+  for (const auto& [index, e] : entries_) pinned += e.pinned ? e.bytes.size() : 0;
   if (pinned + incoming > budget_)
     throw Error(ExitCode::kUsage, "memory budget of " + std::to_string(budget_) + " bytes is too small: this round needs " +
                                       std::to_string(pinned + incoming) + " bytes of chunks at once");

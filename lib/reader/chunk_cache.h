@@ -27,7 +27,8 @@ struct ChunkCacheStats {
   uint64_t raw_bytes_loaded = 0;
   uint64_t evictions = 0;
   uint64_t prefetched = 0;     // of the loads, read ahead on the I/O thread while a round traced
-  uint64_t resident_bytes = 0;       // decompressed bytes held now
+  uint64_t resident_bytes = 0;       // decompressed bytes held now (a reused buffer may hold up to 1/16
+                                     // more: allocator slack, in the peak RSS, not in the budget)
   uint64_t peak_resident_bytes = 0;  // the most ever held at once (≤ the budget)
   double load_seconds = 0;           // wall time inside acquire() loading
   double hit_rate() const { return requests ? double(hits) / double(requests) : 0.0; }
@@ -70,9 +71,7 @@ class ChunkCache {
   void evict_until(uint64_t incoming, std::vector<AlignedBytes>* recycle = nullptr);
   void join_prefetch();  // waits for the background reads; rethrows their error
   void insert(uint32_t index, AlignedBytes bytes, bool pinned);
-  // What a resident chunk counts against the budget: its decompressed bytes. A recycled buffer may hold
-  // up to 1/16 more (allocator slack, like malloc's own: in the peak RSS, not in the budget).
-  static uint64_t held(const AlignedBytes& b) { return b.size(); }
+
   std::vector<uint32_t> staged_indices_;  // read ahead, joined, not yet inserted
   std::vector<AlignedBytes> staged_bytes_;
   struct Prefetch;
