@@ -37,6 +37,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "bench_agreement.h"
 #include "bench_budget.h"
 #include "bench_convert.h"
 #include "bench_dag.h"
@@ -54,7 +55,11 @@
 namespace {
 
 using namespace rtp;
+using bench::Agreement;
 using bench::Clock;
+using bench::KindData;
+using bench::agreement_any;
+using bench::agreement_closest;
 using bench::best_of;
 using bench::seconds_since;
 using nlohmann::json;
@@ -96,46 +101,6 @@ std::vector<std::string> split_list(const std::string& s) {
 }
 
 // The rays of one kind and Embree's answers to them (the reference for the agreement check).
-struct KindData {
-  RayKind kind;
-  bool any = false;  // timed as any-hit
-  std::vector<fmt::Ray> rays;
-  std::vector<fmt::Hit> ref_hits;  // Embree closest hits (reference for both query types)
-  std::vector<uint8_t> skip;       // rays Embree cannot take: no reference
-  RayCoherence coherence = RayCoherence::kIncoherent;  // how Embree is timed on these rays
-  RayGenInfo info;
-  uint64_t embree_timed_failures = 0;  // timed Embree answers (packets for primary) vs the stream reference
-};
-
-struct Agreement {
-  uint64_t agree = 0, edge_ties = 0, precision_ties = 0, failures = 0, skipped = 0;
-  std::string first_failure;
-};
-
-Agreement agreement_closest(const Scene& scene, const KindData& k, const std::vector<fmt::Hit>& got) {
-  CompareOptions opt;
-  opt.scene = &scene;
-  const CompareReport r = compare_closest(k.rays.data(), k.ref_hits.data(), got.data(), k.rays.size(), opt, k.skip.data());
-  Agreement a{r.agree(), r.edge_ties, r.precision_ties, r.failures, r.skipped, {}};
-  if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
-  return a;
-}
-
-// Any hit: against Embree's closest hit (ties classified through rtpack's own closest hit, computed
-// untimed), and against rtpack's own closest hit (no ties allowed beyond edges).
-Agreement agreement_any(const Scene& scene, const KindData& k, const std::vector<uint8_t>& occ,
-                        const std::vector<fmt::Hit>& own_closest) {
-  CompareOptions opt;
-  opt.scene = &scene;
-  const size_t n = k.rays.size();
-  const AnyHitReport r = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, opt, k.skip.data(), own_closest.data());
-  const AnyHitReport own = check_any_hit(k.rays.data(), own_closest.data(), occ.data(), n, opt);
-  Agreement a{r.consistent, r.edge_ties, r.precision_ties, r.failures + own.failures, r.skipped, {}};
-  if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
-  else if (!own.first_failures.empty()) a.first_failure = "(any hit vs rtpack's own closest hit)\n" + own.first_failures[0].describe();
-  return a;
-}
-
 struct Record {
   RayKind kind;
   int width = 0;
