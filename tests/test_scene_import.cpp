@@ -3,6 +3,9 @@
 
 #include <cmath>
 #include <map>
+#include <random>
+
+#include <tbb/task_arena.h>
 
 #include "gltf_builder.h"
 #include "scene/import.h"
@@ -175,6 +178,49 @@ TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
     EXPECT_EQ(s.bounds.hi[k], brute.hi[k]);
   }
   ASSERT_EQ(s.cameras.size(), 1u);
+}
+
+// compute_world_bounds skips the instances whose root-box bound cannot raise a face already found:
+// on thousands of rotated, scaled and mirrored instances (ties included: copies of one placement, and
+// instances of a mesh without vertices) it must still equal the brute force exactly, for 1 and 2 threads.
+TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Scene s;
+  for (int m = 0; m < 3; ++m) {
+    Mesh mesh;
+    for (int v = 0; v < 400; ++v) mesh.positions.push_back({u(rng), u(rng) * (m + 1.f), u(rng) * 0.5f});
+    for (uint32_t t = 0; t + 2 < 400; t += 3) mesh.indices.insert(mesh.indices.end(), {t, t + 1, t + 2});
+    s.meshes.push_back(mesh);
+  }
+  s.meshes.push_back(Mesh{});  // no vertices: contributes nothing
+  for (int i = 0; i < 6000; ++i) {
+    Instance in;
+    in.mesh = uint32_t(i % 4);
+    const double a = u(rng) * 3.2, b = u(rng) * 3.2, sc = 0.5 + u(rng) * 0.4;
+    const double ca = std::cos(a), sa = std::sin(a), cb = std::cos(b), sb = std::sin(b);
+    const double r[3][3] = {{ca * cb, -sa, ca * sb}, {sa * cb, ca, sa * sb}, {-sb, 0, cb}};
+    const double mirror = i % 5 == 0 ? -1.0 : 1.0;
+    for (int row = 0; row < 3; ++row) {
+      for (int c = 0; c < 3; ++c) in.transform(row, c) = float(r[row][c] * sc * (c == 0 ? mirror : 1.0));
+      in.transform(row, 3) = u(rng) * 20.f;
+    }
+    s.instances.push_back(in);
+    if (i % 100 == 0) s.instances.push_back(in);  // the same placement twice
+  }
+  Aabb brute;
+  for (const Instance& in : s.instances)
+    for (uint32_t v : s.meshes[in.mesh].indices) brute.grow(in.transform.apply(to_d(s.meshes[in.mesh].positions[v])));
+  for (int threads : {1, 2}) {
+    Aabb got;
+    tbb::task_arena(threads).execute([&] { got = compute_world_bounds(s); });
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(got.lo[k], brute.lo[k]) << "axis " << k << ", " << threads << " threads";
+      EXPECT_EQ(got.hi[k], brute.hi[k]) << "axis " << k << ", " << threads << " threads";
+    }
+  }
+  s.instances.resize(0);
+  EXPECT_TRUE(compute_world_bounds(s).empty());
 }
 
 TEST(ImportReal, Forest2kInstancedTriangleCount) {

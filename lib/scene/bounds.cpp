@@ -4,6 +4,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
+#include <limits>
 #include <memory>
 #include <numeric>
 
@@ -98,6 +100,26 @@ Aabb instance_bounds(const PointTree& t, const Instance& inst) {
   return acc;
 }
 
+// One face of an instance's world box, as a maximum: side 0..2 = hi[row], 3..5 = -lo[row]. `exact`
+// runs the branch and bound; otherwise the root box's bound, which is never below the exact value
+// (same evaluation order, monotone rounding).
+double side_value(const PointTree& t, const Instance& inst, int side, bool exact) {
+  const int row = side % 3;
+  const double sign = side < 3 ? 1.0 : -1.0;
+  const Vec3d w = Vec3d{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)} * sign;
+  const double tr = inst.transform(row, 3);
+  double s;
+  if (exact) {
+    s = t.support(w);
+  } else {
+    const Aabb& b = t.nodes[0].box;
+    s = std::max(w.x * b.lo.x, w.x * b.hi.x) + std::max(w.y * b.lo.y, w.y * b.hi.y) +
+        std::max(w.z * b.lo.z, w.z * b.hi.z);
+  }
+  // hi = support(w) + tr; lo = -support(-w) + tr, so -lo = support(-w) - tr (negation is exact).
+  return side < 3 ? s + tr : s - tr;
+}
+
 }  // namespace
 
 Aabb compute_instance_world_bounds(const Scene& scene, size_t instance) {
@@ -109,31 +131,48 @@ Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t,
   // One point tree per mesh, built in parallel (each is independent).
   std::vector<std::unique_ptr<PointTree>> trees(scene.meshes.size());
   tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { trees[m] = std::make_unique<PointTree>(scene.meshes[m]); });
-  // Instances in slices of about 1 %, each in parallel; progress is reported between slices from the
-  // calling thread. min/max do not depend on the order: the bounds are the same for any thread count.
-  const size_t n = scene.instances.size(), slice = std::max<size_t>(4096, n / 100);
-  Aabb all;
-  for (size_t first = 0; first < n; first += slice) {
-    const size_t last = std::min(n, first + slice);
-    all.grow(tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(first, last, 1024), Aabb{},
-        [&](const tbb::blocked_range<size_t>& r, Aabb acc) {
+  const size_t n = scene.instances.size();
+  auto usable = [&](size_t i) { return !trees[scene.instances[i].mesh]->pts.empty(); };
+  constexpr double kNone = -std::numeric_limits<double>::infinity();
+  // Branch and bound over the instances too, one face of the scene box at a time: the scene's face is
+  // the maximum of the instances' exact faces, and an instance whose root-box bound does not exceed an
+  // exact face already found cannot raise it. So only the instances near the scene's boundary run the
+  // point-tree search; the result is the same maximum as evaluating every instance, for any thread count.
+  std::array<double, 6> face;
+  for (int side = 0; side < 6; ++side) {
+    // Seed: the exact face of the instance with the largest bound (ties: lowest index).
+    struct Best { double v; size_t i; };
+    const Best seed = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, n, 4096), Best{kNone, n},
+        [&](const tbb::blocked_range<size_t>& r, Best b) {
           for (size_t i = r.begin(); i != r.end(); ++i) {
-            const Instance& inst = scene.instances[i];
-            const Aabb b = instance_bounds(*trees[inst.mesh], inst);
-            if (b.empty()) continue;
-            for (int row = 0; row < 3; ++row) {
-              acc.hi[row] = std::max(acc.hi[row], b.hi[row]);
-              acc.lo[row] = std::min(acc.lo[row], b.lo[row]);
-            }
+            if (!usable(i)) continue;
+            const double v = side_value(*trees[scene.instances[i].mesh], scene.instances[i], side, false);
+            if (v > b.v || (v == b.v && i < b.i)) b = {v, i};
           }
-          return acc;
+          return b;
         },
-        [](Aabb a, const Aabb& b) {
-          a.grow(b);
-          return a;
-        }));
-    if (progress) progress(last, n);
+        [](Best a, Best b) { return b.v > a.v || (b.v == a.v && b.i < a.i) ? b : a; });
+    if (seed.i == n) return Aabb{};  // no instance has a vertex
+    const double start = side_value(*trees[scene.instances[seed.i].mesh], scene.instances[seed.i], side, true);
+    face[side] = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, n, 1024), start,
+        [&](const tbb::blocked_range<size_t>& r, double best) {
+          for (size_t i = r.begin(); i != r.end(); ++i) {
+            if (!usable(i)) continue;
+            const PointTree& t = *trees[scene.instances[i].mesh];
+            if (side_value(t, scene.instances[i], side, false) <= best) continue;
+            best = std::max(best, side_value(t, scene.instances[i], side, true));
+          }
+          return best;
+        },
+        [](double a, double b) { return std::max(a, b); });
+    if (progress) progress(n * uint64_t(side + 1) / 6, n);
+  }
+  Aabb all;
+  for (int row = 0; row < 3; ++row) {
+    all.hi[row] = face[row];
+    all.lo[row] = -face[row + 3];
   }
   return all;
 }
