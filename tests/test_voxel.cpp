@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -291,6 +292,40 @@ TEST(VoxelVoxelize, PlanesAndSingleCells) {
   Grid thin({0, 0, 0}, 1, 8);
   voxel::voxelize_triangle_thin(thin, {1, 2, 3}, {2, 2, 3}, {1, 3, 3});
   EXPECT_LE(thin.count(), 1u);  // one cell of the two
+}
+
+// mark_box fills whole 4x4x4 blocks with per-axis masks: it must set exactly the cells whose closed
+// boxes meet the closed query box, for boxes inside, across and beyond the grid, on planes or not.
+TEST(VoxelVoxelize, MarkBoxSetsExactlyTheOverlappedCells) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-3, 19);
+  std::uniform_int_distribution<int> on_plane(0, 2);
+  const Vec3d origin{-1, -1, -1};
+  const double cell = 0.5;
+  const uint32_t R = 32;
+  for (int trial = 0; trial < 400; ++trial) {
+    Vec3d lo, hi;
+    for (int k = 0; k < 3; ++k) {
+      double a = u(rng), b = a + std::abs(u(rng)) * (trial % 4 == 0 ? 1.0 : 0.1);
+      if (on_plane(rng) == 0) a = std::floor(a * 2) / 2, b = std::ceil(b * 2) / 2;  // on cell planes
+      lo[k] = a;
+      hi[k] = b;
+    }
+    Grid g(origin, cell, R);
+    g.mark_box(lo, hi);
+    uint64_t expected = 0;
+    for (uint32_t z = 0; z < R; ++z)
+      for (uint32_t y = 0; y < R; ++y)
+        for (uint32_t x = 0; x < R; ++x) {
+          const uint32_t c[3] = {x, y, z};
+          bool in = true;
+          for (int k = 0; k < 3; ++k)
+            in = in && origin[k] + c[k] * cell <= hi[k] && origin[k] + (c[k] + 1) * cell >= lo[k];
+          expected += in;
+          ASSERT_EQ(g.get(x, y, z), in) << "trial " << trial << " cell (" << x << "," << y << "," << z << ")";
+        }
+    EXPECT_EQ(g.count(), expected) << "trial " << trial;
+  }
 }
 
 }}  // namespace

@@ -1,9 +1,9 @@
 // Sparse voxel octree -> DAG, bottom-up with hashing (Kämpe et al. 2013; Molenaar 2019 §3.3
 // Algorithm 1), and the package-wide pool whose one hash table is shared by every batching point.
+#include <algorithm>
 #include <bit>
-#include <string>
-#include <unordered_map>
 
+#include "voxel/hash_index.h"
 #include "voxel/voxel.h"
 
 namespace rtp::voxel {
@@ -14,16 +14,17 @@ constexpr uint32_t kNone = fmt::kDagEmpty;  // "empty" while building (never sto
 struct Builder {
   const Grid& g;
   LocalDag out;
-  std::unordered_map<uint64_t, uint32_t> leaf_index;
-  std::unordered_map<std::u32string, uint32_t> node_index;  // (level, words...) -> offset
+  HashIndex leaf_index;  // mask -> index into out.leaves
+  HashIndex node_index;  // (level, words...) -> index into out.node_offsets
 
   uint32_t leaf(uint32_t bx, uint32_t by, uint32_t bz) {
     const uint64_t m = g.block(bx, by, bz);
     if (m == 0) return kNone;
     if (m == ~uint64_t(0)) return fmt::kDagFull;
-    auto [it, fresh] = leaf_index.emplace(m, uint32_t(out.leaves.size()));
+    const auto [index, fresh] =
+        leaf_index.find_or_insert(mix64(m), [&](uint32_t v) { return out.leaves[v] == m; }, uint32_t(out.leaves.size()));
     if (fresh) out.leaves.push_back(m);
-    return it->second;
+    return index;
   }
   // Node at `level` (>= 1) whose block-space corner is (x, y, z) * 2^level.
   uint32_t node(int level, uint32_t x, uint32_t y, uint32_t z) {
@@ -38,18 +39,22 @@ struct Builder {
     }
     if (child_mask == 0) return kNone;
     if (full_mask == 0xFF) return fmt::kDagFull;
-    std::u32string w;  // the level first: the same words at another level are other children
-    w.push_back(char32_t(level));
-    w.push_back(char32_t(child_mask | full_mask << 8));
+    // The key is (level, words): the same words at another level are other children.
+    uint32_t w[9], n = 0;
+    w[n++] = child_mask | full_mask << 8;
     for (uint32_t c = 0; c < 8; ++c)
-      if ((child_mask & ~full_mask) >> c & 1) w.push_back(char32_t(refs[c]));
-    auto [it, fresh] = node_index.emplace(w, uint32_t(out.words.size()));
+      if ((child_mask & ~full_mask) >> c & 1) w[n++] = refs[c];
+    const auto same = [&](uint32_t k) {  // equal heads: equal lengths
+      return out.node_levels[k] == level && out.words[out.node_offsets[k]] == w[0] &&
+             std::equal(w, w + n, out.words.begin() + out.node_offsets[k]);
+    };
+    const auto [k, fresh] = node_index.find_or_insert(hash_words(w, n, uint64_t(level)), same, uint32_t(out.node_offsets.size()));
     if (fresh) {
       out.node_offsets.push_back(uint32_t(out.words.size()));
       out.node_levels.push_back(uint8_t(level));
-      out.words.insert(out.words.end(), w.begin() + 1, w.end());
+      out.words.insert(out.words.end(), w, w + n);
     }
-    return it->second;
+    return out.node_offsets[k];
   }
 };
 
@@ -117,33 +122,37 @@ LocalDag build_dag(const Grid& g) {
 uint32_t DagPool::add(const LocalDag& dag) {
   std::vector<uint32_t> leaf_map(dag.leaves.size());
   for (size_t i = 0; i < dag.leaves.size(); ++i) {
-    auto [it, fresh] = leaf_index_.emplace(dag.leaves[i], uint32_t(leaves_.size()));
-    if (fresh) leaves_.push_back(dag.leaves[i]);
-    leaf_map[i] = it->second;
+    const uint64_t m = dag.leaves[i];
+    const auto [index, fresh] =
+        leaf_index_.find_or_insert(mix64(m), [&](uint32_t v) { return leaves_[v] == m; }, uint32_t(leaves_.size()));
+    if (fresh) leaves_.push_back(m);
+    leaf_map[i] = index;
   }
-  std::unordered_map<uint32_t, uint32_t> node_map;  // local offset -> pool offset
+  std::vector<uint32_t> node_map(dag.words.size(), fmt::kDagEmpty);  // local offset -> pool offset
+  std::vector<uint32_t> w;
   for (size_t k = 0; k < dag.node_offsets.size(); ++k) {
     const uint32_t off = dag.node_offsets[k];
     const uint32_t head = dag.words[off];
     const uint32_t refs = fmt::dag_child_mask(head) & ~fmt::dag_full_mask(head), inl = fmt::dag_inline_mask(head);
-    std::u32string w;
-    w.push_back(char32_t(head));
+    w.assign(1, head);
     for (uint32_t c = 0, i = 0; c < 8; ++c) {
       if (!(refs >> c & 1)) continue;
       const uint32_t r = dag.words[off + 1 + i++];
       if (inl >> c & 1) {  // an inline leaf: its two words as they are
-        w.push_back(char32_t(r));
-        w.push_back(char32_t(dag.words[off + 1 + i++]));
+        w.push_back(r);
+        w.push_back(dag.words[off + 1 + i++]);
       } else {
-        w.push_back(char32_t(dag.node_levels[k] == 1 ? leaf_map[r] : node_map.at(r)));
+        w.push_back(dag.node_levels[k] == 1 ? leaf_map[r] : node_map.at(r));
       }
     }
     // Identical words are identical subtrees at whatever level they are read (references are
     // interpreted by the level of the node that holds them), so the pool shares them across levels.
-    auto [it, fresh] = node_index_.emplace(w, uint32_t(words_.size()));
-    if (fresh)
-      for (char32_t v : w) words_.push_back(uint32_t(v));
-    node_map[off] = it->second;
+    const auto same = [&](uint32_t at) {  // equal heads: equal lengths
+      return words_[at] == head && std::equal(w.begin(), w.end(), words_.begin() + at);
+    };
+    const auto [at, fresh] = node_index_.find_or_insert(hash_words(w.data(), w.size(), 0), same, uint32_t(words_.size()));
+    if (fresh) words_.insert(words_.end(), w.begin(), w.end());
+    node_map[off] = at;
   }
   if (dag.root == fmt::kDagEmpty || dag.root == fmt::kDagFull) return dag.root;
   return dag.node_offsets.empty() ? leaf_map.at(dag.root) : node_map.at(dag.root);

@@ -3,11 +3,11 @@
 // points, sparse voxel DAGs in one shared pool, and the interval-clipped ray/DAG test.
 #include <cstdint>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "core/math.h"
 #include "formats/dag.h"
+#include "voxel/hash_index.h"
 #include "trace/dag_trace.h"  // DagView, DagHit, check_dag(s), dag_first_entry
 
 namespace rtp::voxel {
@@ -104,8 +104,8 @@ class DagPool {
  private:
   std::vector<uint32_t> words_;
   std::vector<uint64_t> leaves_;
-  std::unordered_map<std::u32string, uint32_t> node_index_;
-  std::unordered_map<uint64_t, uint32_t> leaf_index_;
+  HashIndex node_index_;  // words -> offset in words_
+  HashIndex leaf_index_;  // mask -> index in leaves_
 };
 
 // Decodes a grid's DAG into a dense grid (tests, inspection).

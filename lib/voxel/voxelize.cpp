@@ -82,9 +82,20 @@ void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
     while (f[k] < l[k] && origin[k] + (f[k] + 1) * cell < lo[k]) ++f[k];
     while (l[k] > f[k] && origin[k] + l[k] * cell > hi[k]) --l[k];
   }
-  for (int z = f[2]; z <= l[2]; ++z)
-    for (int y = f[1]; y <= l[1]; ++y)
-      for (int x = f[0]; x <= l[0]; ++x) set(uint32_t(x), uint32_t(y), uint32_t(z));
+  // Block by block: a block's cells in the box are the AND of three per-axis masks (bit x + 4y + 16z).
+  const auto axis_mask = [](int first, int last, int block, uint64_t unit, int stride) {
+    uint64_t m = 0;
+    for (int i = std::max(first, 4 * block); i <= std::min(last, 4 * block + 3); ++i) m |= unit << (stride * (i & 3));
+    return m;
+  };
+  for (int bz = f[2] >> 2; bz <= l[2] >> 2; ++bz) {
+    const uint64_t mz = axis_mask(f[2], l[2], bz, 0xFFFF, 16);
+    for (int by = f[1] >> 2; by <= l[1] >> 2; ++by) {
+      const uint64_t myz = mz & axis_mask(f[1], l[1], by, 0x000F000F000F000Full, 4);
+      for (int bx = f[0] >> 2; bx <= l[0] >> 2; ++bx)
+        or_block(uint32_t(bx), uint32_t(by), uint32_t(bz), myz & axis_mask(f[0], l[0], bx, 0x1111111111111111ull, 1));
+    }
+  }
 }
 
 // Schwarz & Seidel 2010 §3.1: a triangle overlaps a box (corner p, size dp) iff their bounding boxes
