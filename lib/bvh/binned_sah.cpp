@@ -228,38 +228,42 @@ Split Splitter::find(const Range& r) const {
   }
   const Bins& bins = *binned;
 
-  // Sweep each axis: right-to-left suffix areas/counts, then left-to-right. Ties keep the first
-  // candidate (x before y before z, lower plane first).
+  // Sweep each axis over its non-empty bins: right-to-left suffix areas/counts, then left-to-right.
+  // Planes between two non-empty bins all cost the same, and ties keep the first candidate (x before
+  // y before z, lower plane first), so plane idx[j] + 1 stands for them: the same split as a sweep of
+  // every bin, in at most n steps instead of `bins` for the many small ranges near the leaves.
   double best_cost = std::numeric_limits<double>::infinity();
   std::array<double, kMaxBins> right_area{};
-  std::array<uint32_t, kMaxBins> right_count{};
+  std::array<uint32_t, kMaxBins> right_count{}, idx{};
   for (int a = 0; a < 3; ++a) {
     if (!map.usable[a]) continue;
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < nb; ++i)
+      if (bins.count[a][i]) idx[m++] = i;
     VBox acc;
     uint32_t cnt = 0;
-    for (uint32_t i = nb - 1; i > 0; --i) {
-      acc.add(bins.box[a][i].lo, bins.box[a][i].hi);
-      cnt += bins.count[a][i];
-      right_area[i] = half_area_sse(acc.lo, acc.hi);
-      right_count[i] = cnt;
+    for (uint32_t j = m; j-- > 1;) {
+      acc.add(bins.box[a][idx[j]].lo, bins.box[a][idx[j]].hi);
+      cnt += bins.count[a][idx[j]];
+      right_area[j] = half_area_sse(acc.lo, acc.hi);
+      right_count[j] = cnt;
     }
     acc = VBox{};
     cnt = 0;
-    for (uint32_t i = 1; i < nb; ++i) {
-      acc.add(bins.box[a][i - 1].lo, bins.box[a][i - 1].hi);
-      cnt += bins.count[a][i - 1];
-      if (cnt == 0 || right_count[i] == 0) continue;
+    for (uint32_t j = 1; j < m; ++j) {
+      acc.add(bins.box[a][idx[j - 1]].lo, bins.box[a][idx[j - 1]].hi);
+      cnt += bins.count[a][idx[j - 1]];
       const double left_area = half_area_sse(acc.lo, acc.hi);
-      const double cost = left_area * cnt + right_area[i] * right_count[i];
+      const double cost = left_area * cnt + right_area[j] * right_count[j];
       if (cost < best_cost) {
         best_cost = cost;
         best.median = false;
         best.axis = a;
-        best.bin = i;
+        best.bin = idx[j - 1] + 1;
         best.left_area = left_area;
-        best.right_area = right_area[i];
+        best.right_area = right_area[j];
         best.left_count = cnt;
-        best.right_count = right_count[i];
+        best.right_count = right_count[j];
       }
     }
   }
