@@ -29,18 +29,18 @@ class ConvertProgress : public ::testing::Test {
 };
 fs::path ConvertProgress::dir, ConvertProgress::forest;
 
-TEST_F(ConvertProgress, ImportReportsTheBoundsOfInstancesInSlices) {
+TEST_F(ConvertProgress, ImportReportsTheBoundsOfInstancesFaceByFace) {
   std::vector<std::pair<uint64_t, uint64_t>> calls;
   ImportOptions opt;
   opt.on_progress = [&](uint64_t d, uint64_t t) { calls.push_back({d, t}); };
   const Scene scene = import_gltf(forest.string(), opt);
   ASSERT_EQ(scene.instances.size(), 5000u);
-  ASSERT_EQ(calls.size(), 2u);  // slices of max(4096, n / 100) instances
+  ASSERT_EQ(calls.size(), 6u);  // one step per face of the scene box, in instances' worth of work
   for (size_t i = 0; i < calls.size(); ++i) {
     EXPECT_EQ(calls[i].second, 5000u);
-    EXPECT_EQ(calls[i].first, std::min<uint64_t>(5000, 4096 * (i + 1)));
+    EXPECT_EQ(calls[i].first, 5000u * (i + 1) / 6);
   }
-  // The bounds do not depend on the progress callback or the slicing: the same as without it, and the
+  // The bounds do not depend on the progress callback: the same as without it, and the
   // brute-force reference: every vertex a triangle uses, through its instance's transform (the same double
   // arithmetic: row · v + t).
   const Scene plain = import_gltf(forest.string());
@@ -108,7 +108,7 @@ TEST_F(ConvertProgress, VerboseAddsStageLinesAndTheDefaultDoesNot) {
   const ToolResult v = run_tool("rtpack-convert", {forest.string(), "-v", "--threads", "1", "-o", (dir / "v.rtp").string()}, dir, {}, 300);
   ASSERT_EQ(v.code, 0) << v.err;
   for (const char* s : {"stage import", "stage prepare", "stage batching points", "stage chunks", "peak RSS",
-                        "settings: 1 threads, W=8, B=8, zstd level 6"})
+                        "settings: 1 threads, W=8, B=8, zstd level 3"})
     EXPECT_NE(v.err.find(s), std::string::npos) << s << "\n" << v.err;
   const ToolResult d = run_tool("rtpack-convert", {forest.string(), "-o", (dir / "d.rtp").string()}, dir, {}, 300);
   ASSERT_EQ(d.code, 0) << d.err;
