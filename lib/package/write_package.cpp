@@ -4,6 +4,7 @@
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
+#include <tbb/task_group.h>
 #include <tbb/task_arena.h>
 
 #include <chrono>
@@ -150,10 +151,15 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   job.raw = cb.finish();
 }
 
-// Resident sections: metadata, top level, descriptors (+ culling grids), DAG pool, instances, meshes,
-// source map (SPEC §4.1, §4.5). `grids` is empty without DAGs.
-std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o,
-                               const std::vector<fmt::DagGrid>& grids, const voxel::DagPool& pool) {
+// Resident sections, in file order: metadata, top level, descriptors (+ culling grids), DAG pool,
+// instances, meshes, source map (SPEC §4.1, §4.5). Two groups: those that need no batching point
+// (built and compressed while the points are, e.g. the 10^6-record instance table) and the two that
+// need every point's culling grid and the finished DAG pool (point_resident_jobs).
+// early_resident_jobs: metadata, top level | instances, meshes, source map; the first two precede the
+// point-dependent chunks in the file.
+constexpr size_t kResidentBeforePoints = 2;
+
+std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
   std::vector<Job> jobs;
   auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
     Job j{kind, 0, cb.finish()};
@@ -169,7 +175,7 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   meta["batching_points"] = plan.points.size();
   meta["mesh_segments"] = plan.segments.size();
   meta["pieces"] = plan.pieces.size();
-  meta["dag"] = !grids.empty();
+  meta["dag"] = o.dag && !plan.points.empty();  // a grid per point, as write_t makes them
   nlohmann::json cams = nlohmann::json::array();
   for (const Camera& c : scene.cameras)
     cams.push_back({{"name", c.name}, {"type", c.type == Camera::Type::kPerspective ? "perspective" : "orthographic"},
@@ -188,40 +194,8 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   tc.add(SectionType::kTopNodes, plan.top);
   add(ChunkKind::kTopLevelBvh, tc);
 
-  std::vector<fmt::BatchingPointDesc> descs;
-  std::vector<uint32_t> seg_refs;
-  for (size_t p = 0; p < plan.points.size(); ++p) {
-    const BatchingPoint& bp = plan.points[p];
-    fmt::BatchingPointDesc d{};
-    const Box3f b = box_of(bp.bounds);
-    for (int k = 0; k < 3; ++k) d.lo[k] = b.lo[k], d.hi[k] = b.hi[k];
-    d.unique_triangles = bp.unique_triangles;
-    d.instanced_triangles = bp.instanced_triangles;
-    d.instance_count = uint32_t(bp.instances.size());
-    d.piece_count = uint32_t(bp.pieces.size());
-    std::vector<uint32_t> segs;
-    for (uint32_t i : bp.instances) segs.push_back(plan.mesh_segment[scene.instances[i].mesh]);
-    std::sort(segs.begin(), segs.end());
-    segs.erase(std::unique(segs.begin(), segs.end()), segs.end());
-    d.segment_first = uint32_t(seg_refs.size());
-    d.segment_count = uint32_t(segs.size());
-    seg_refs.insert(seg_refs.end(), segs.begin(), segs.end());
-    d.chunk_id = uint32_t(p);
-    descs.push_back(d);
-  }
-  ChunkBuilder dc{uint32_t(ChunkKind::kBatchingPoints)};
-  dc.add(SectionType::kPointDescs, descs);
-  dc.add(SectionType::kSegmentRefs, seg_refs);
-  if (!grids.empty()) dc.add(SectionType::kPointGrids, grids);
-  add(ChunkKind::kBatchingPoints, dc);
-  if (!grids.empty()) {
-    ChunkBuilder pc{uint32_t(ChunkKind::kDagPool)};
-    pc.add(SectionType::kDagNodes, pool.words());
-    pc.add(SectionType::kDagLeaves, pool.leaves());
-    add(ChunkKind::kDagPool, pc);
-  }
-
   std::vector<fmt::InstanceRecord> recs;
+  recs.reserve(scene.instances.size());
   for (const Instance& in : scene.instances) recs.push_back(make_instance_record(in));
   ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
   ic.add(SectionType::kInstances, recs);
@@ -255,6 +229,64 @@ std::vector<Job> resident_jobs(const Scene& scene, const Plan& plan, const Conve
   return jobs;
 }
 
+// The descriptors (+ culling grids) and the DAG pool. `grids` is empty without DAGs.
+std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const std::vector<fmt::DagGrid>& grids,
+                                     const voxel::DagPool& pool) {
+  std::vector<Job> jobs;
+  auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
+    Job j{kind, 0, cb.finish()};
+    jobs.push_back(std::move(j));
+  };
+  std::vector<fmt::BatchingPointDesc> descs;
+  std::vector<uint32_t> seg_refs;
+  for (size_t p = 0; p < plan.points.size(); ++p) {
+    const BatchingPoint& bp = plan.points[p];
+    fmt::BatchingPointDesc d{};
+    const Box3f b = box_of(bp.bounds);
+    for (int k = 0; k < 3; ++k) d.lo[k] = b.lo[k], d.hi[k] = b.hi[k];
+    d.unique_triangles = bp.unique_triangles;
+    d.instanced_triangles = bp.instanced_triangles;
+    d.instance_count = uint32_t(bp.instances.size());
+    d.piece_count = uint32_t(bp.pieces.size());
+    std::vector<uint32_t> segs;
+    for (uint32_t i : bp.instances) segs.push_back(plan.mesh_segment[scene.instances[i].mesh]);
+    std::sort(segs.begin(), segs.end());
+    segs.erase(std::unique(segs.begin(), segs.end()), segs.end());
+    d.segment_first = uint32_t(seg_refs.size());
+    d.segment_count = uint32_t(segs.size());
+    seg_refs.insert(seg_refs.end(), segs.begin(), segs.end());
+    d.chunk_id = uint32_t(p);
+    descs.push_back(d);
+  }
+  ChunkBuilder dc{uint32_t(ChunkKind::kBatchingPoints)};
+  dc.add(SectionType::kPointDescs, descs);
+  dc.add(SectionType::kSegmentRefs, seg_refs);
+  if (!grids.empty()) dc.add(SectionType::kPointGrids, grids);
+  add(ChunkKind::kBatchingPoints, dc);
+  if (!grids.empty()) {
+    ChunkBuilder pc{uint32_t(ChunkKind::kDagPool)};
+    pc.add(SectionType::kDagNodes, pool.words());
+    pc.add(SectionType::kDagLeaves, pool.leaves());
+    add(ChunkKind::kDagPool, pc);
+  }
+  return jobs;
+}
+
+// A resident job compressed, ready to append (PackageWriter::compress is thread-safe).
+struct PackedJob {
+  Job job;
+  std::vector<uint8_t> stored;
+  fmt::Compression comp{};
+};
+std::vector<PackedJob> compress_all(std::vector<Job> jobs, int level) {
+  std::vector<PackedJob> out(jobs.size());
+  tbb::parallel_for(size_t(0), jobs.size(), [&](size_t i) {
+    out[i].job = std::move(jobs[i]);
+    out[i].stored = PackageWriter::compress(out[i].job.raw.data(), out[i].job.raw.size(), level, out[i].comp);
+  });
+  return out;
+}
+
 template <int W, int B>
 ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& path, const ConvertOptions& o) {
   PackageWriter writer(path, o.zstd_level);
@@ -279,6 +311,10 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   if (o.dag) mesh_proxies = std::make_unique<voxel::MeshProxies>(scene, plan);
   std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
   voxel::DagPool pool;
+  // The resident chunks that need no batching point are built and compressed beside the pipeline.
+  std::vector<PackedJob> early;
+  tbb::task_group beside;
+  beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
   struct Packed { Job job; std::vector<uint8_t> stored, attr_stored; fmt::Compression comp, attr_comp; voxel::PointProxy proxy; };
   uint64_t header_flags = 0;
@@ -356,10 +392,13 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   rep.dag_pool_bytes = pool.bytes();
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
   if (o.dag) header_flags |= fmt::kFlagDag;
-  for (Job& j : resident_jobs(scene, plan, o, grids, pool)) {
-    const fmt::TocEntry& e = writer.add_chunk(j.kind, j.id, j.raw.data(), j.raw.size());
-    record(j, e);
-  }
+  beside.wait();
+  std::vector<PackedJob> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
+  std::vector<PackedJob*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
+  for (size_t i = 0; i < kResidentBeforePoints; ++i) order.push_back(&early[i]);
+  for (PackedJob& j : late) order.push_back(&j);
+  for (size_t i = kResidentBeforePoints; i < early.size(); ++i) order.push_back(&early[i]);
+  for (PackedJob* j : order) record(j->job, writer.add_packed(j->job.kind, j->job.id, j->stored, j->comp, j->job.raw.size()));
   fmt::Header h{};
   h.flags = header_flags;
   h.unique_triangles = scene.unique_triangles();
