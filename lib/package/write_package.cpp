@@ -152,11 +152,10 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
 }
 
 // Resident sections, in file order: metadata, top level, descriptors (+ culling grids), DAG pool,
-// instances, meshes, source map (SPEC §4.1, §4.5). Two groups: those that need no batching point
-// (built and compressed while the points are, e.g. the 10^6-record instance table) and the two that
-// need every point's culling grid and the finished DAG pool (point_resident_jobs).
-// early_resident_jobs: metadata, top level | instances, meshes, source map; the first two precede the
-// point-dependent chunks in the file.
+// instances, meshes, source map (SPEC §4.1, §4.5), in two groups. early_resident_jobs: the five that
+// need no batching point (built and compressed while the points are, e.g. a 10^6-record instance
+// table), of which the first kResidentBeforePoints precede the other group in the file;
+// point_resident_jobs: the two that need every point's culling grid and the finished DAG pool.
 constexpr size_t kResidentBeforePoints = 2;
 
 std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
