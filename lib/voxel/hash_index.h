@@ -4,7 +4,6 @@
 // arrays (the DAG's words and leaves); the index stores only (hash, value) pairs, so a lookup
 // allocates nothing and a table of millions of nodes is two flat arrays, not a node per entry.
 #include <cstdint>
-#include <cstring>
 #include <utility>
 #include <vector>
 
