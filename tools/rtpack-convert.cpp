@@ -61,7 +61,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"normal", "uv"}));
   app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) +
-                                                 "; 6: about 4 % smaller, chunks stage 1.2-1.5x slower; 19: about 25 % smaller, 15-20x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
+                                                 "; 6: 3.5-5 % smaller, chunks stage 1.2-1.5x slower; 19: about 25 % smaller, 15-20x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
       ->check(CLI::PositiveNumber);
   bool no_dag = false;
