@@ -158,12 +158,11 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
 // point_resident_jobs: the two that need every point's culling grid and the finished DAG pool.
 constexpr size_t kResidentBeforePoints = 2;
 
+Job resident_job(ChunkKind kind, ChunkBuilder& cb) { return Job{kind, 0, cb.finish()}; }
+
 std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
   std::vector<Job> jobs;
-  auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
-    Job j{kind, 0, cb.finish()};
-    jobs.push_back(std::move(j));
-  };
+  auto add = [&](ChunkKind kind, ChunkBuilder& cb) { jobs.push_back(resident_job(kind, cb)); };
   nlohmann::json meta = o.metadata;
   meta["format"] = "rtpack";
   meta["bvh_width"] = o.width;
@@ -232,10 +231,7 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
 std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const std::vector<fmt::DagGrid>& grids,
                                      const voxel::DagPool& pool) {
   std::vector<Job> jobs;
-  auto add = [&](ChunkKind kind, ChunkBuilder& cb) {
-    Job j{kind, 0, cb.finish()};
-    jobs.push_back(std::move(j));
-  };
+  auto add = [&](ChunkKind kind, ChunkBuilder& cb) { jobs.push_back(resident_job(kind, cb)); };
   std::vector<fmt::BatchingPointDesc> descs;
   std::vector<uint32_t> seg_refs;
   for (size_t p = 0; p < plan.points.size(); ++p) {

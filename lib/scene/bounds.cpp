@@ -64,8 +64,12 @@ struct PointTree {
     }
     return id;
   }
-  // max over points of dot(r, p). The box bound uses the same evaluation order as dot(), and
-  // rounding is monotone, so the bound never undercuts a point: the result is exact.
+  // max over the box of dot(r, p), evaluated in dot()'s order: rounding is monotone, so it never
+  // undercuts a point of the box.
+  static double box_bound(const Vec3d& r, const Aabb& b) {
+    return std::max(r.x * b.lo.x, r.x * b.hi.x) + std::max(r.y * b.lo.y, r.y * b.hi.y) + std::max(r.z * b.lo.z, r.z * b.hi.z);
+  }
+  // max over points of dot(r, p), pruned by box_bound: the result is exact.
   double support(const Vec3d& r) const {
     double best = -std::numeric_limits<double>::infinity();
     uint32_t stack[128];
@@ -73,9 +77,7 @@ struct PointTree {
     stack[sp++] = 0;
     while (sp) {
       const Node& n = nodes[stack[--sp]];
-      const double ub = std::max(r.x * n.box.lo.x, r.x * n.box.hi.x) + std::max(r.y * n.box.lo.y, r.y * n.box.hi.y) +
-                        std::max(r.z * n.box.lo.z, r.z * n.box.hi.z);
-      if (ub <= best) continue;
+      if (box_bound(r, n.box) <= best) continue;
       if (!n.left) {
         for (uint32_t i = n.begin; i < n.end; ++i) best = std::max(best, dot(r, pts[i]));
       } else {
@@ -108,14 +110,7 @@ double side_value(const PointTree& t, const Instance& inst, int side, bool exact
   const double sign = side < 3 ? 1.0 : -1.0;
   const Vec3d w = Vec3d{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)} * sign;
   const double tr = inst.transform(row, 3);
-  double s;
-  if (exact) {
-    s = t.support(w);
-  } else {
-    const Aabb& b = t.nodes[0].box;
-    s = std::max(w.x * b.lo.x, w.x * b.hi.x) + std::max(w.y * b.lo.y, w.y * b.hi.y) +
-        std::max(w.z * b.lo.z, w.z * b.hi.z);
-  }
+  const double s = exact ? t.support(w) : PointTree::box_bound(w, t.nodes[0].box);
   // hi = support(w) + tr; lo = -support(-w) + tr, so -lo = support(-w) - tr (negation is exact).
   return side < 3 ? s + tr : s - tr;
 }
