@@ -70,21 +70,28 @@ struct alignas(4 * B) LeafBlock {
 static_assert(sizeof(LeafBlock<4>) == 160 && sizeof(LeafBlock<8>) == 320 && sizeof(LeafBlock<16>) == 640);
 static_assert(offsetof(LeafBlock<8>, v1) == 96 && offsetof(LeafBlock<8>, prim) == 288);
 
-// An instance as the tracer sees it (SPEC §2.4), 112 bytes:
-//   offset 0   float local_to_world[12]  row-major 3x4
-//   offset 48  float world_to_local[12]  row-major 3x4, inverted in double then rounded
+// An instance as the tracer sees it (SPEC §2.4, version 4.0), 112 bytes:
+//   offset 0   double translation[3]     local->world translation T, as the glTF nodes compose it
+//   offset 24  float  linear[9]          local->world 3x3 L, row-major, rounded from double
+//   offset 60  float  inverse_linear[9]  L^-1, row-major, inverted in double then rounded; all zeros
+//                                        when L is singular (the instance is never hit)
 //   offset 96  uint32 mesh               mesh (BVH) index
 //   offset 100 uint32 flags              bit 0: mirrored (det < 0)
 //   offset 104 uint32 source_node        glTF node
 //   offset 108 uint32 source_gpu_instance EXT_mesh_gpu_instancing index or 0xFFFFFFFF
+// A world ray enters the instance as org' = L^-1 (org - T), dir' = L^-1 dir, evaluated in double: the
+// translation is kept apart so a far instance (T = 3000000.3) is as exact as one at the origin.
 struct InstanceRecord {
-  float local_to_world[12];
-  float world_to_local[12];
+  double translation[3];
+  float linear[9];
+  float inverse_linear[9];
   uint32_t mesh;
   uint32_t flags;
   uint32_t source_node;
   uint32_t source_gpu_instance;
 };
-static_assert(sizeof(InstanceRecord) == 112 && offsetof(InstanceRecord, mesh) == 96);
+static_assert(sizeof(InstanceRecord) == 112 && alignof(InstanceRecord) == 8);
+static_assert(offsetof(InstanceRecord, linear) == 24 && offsetof(InstanceRecord, inverse_linear) == 60 &&
+              offsetof(InstanceRecord, mesh) == 96);
 
 }  // namespace rtp::fmt

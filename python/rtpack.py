@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - depends on the machine
 
 # ---- constants (formats/package.h, chunk.h, dag.h) -------------------------------------------------
 MAGIC = b"RTPACK\r\n"
-VERSION_MAJOR, VERSION_MINOR = 3, 0
+VERSION_MAJOR, VERSION_MINOR = 4, 0
 ALIGNMENT = 4096
 CHUNK_MAGIC = 0x48435452  # "RTCH"
 MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
@@ -116,9 +116,9 @@ TOC_ENTRY = _dt([("kind", "<u4"), ("compression", "<u4"), ("id", "<u8"), ("offse
 # SPEC §4 ChunkHeader (16 B), SectionEntry (24 B)
 CHUNK_HEADER = _dt([("magic", "<u4"), ("kind", "<u4"), ("section_count", "<u4"), ("reserved", "<u4")])
 SECTION_ENTRY = _dt([("type", "<u4"), ("elem_size", "<u4"), ("offset", "<u8"), ("count", "<u8")])
-# SPEC §2.4 InstanceRecord (112 B)
-INSTANCE_RECORD = _dt([("local_to_world", "<f4", (12,)), ("world_to_local", "<f4", (12,)), ("mesh", "<u4"),
-                       ("flags", "<u4"), ("source_node", "<u4"), ("source_gpu_instance", "<u4")])
+# SPEC §2.4 InstanceRecord (112 B): world = linear @ local + translation (double), local = inverse_linear @ (world - translation)
+INSTANCE_RECORD = _dt([("translation", "<f8", (3,)), ("linear", "<f4", (3, 3)), ("inverse_linear", "<f4", (3, 3)),
+                       ("mesh", "<u4"), ("flags", "<u4"), ("source_node", "<u4"), ("source_gpu_instance", "<u4")])
 # SPEC §4.2 MeshEntry (32 B)
 MESH_ENTRY = _dt([("id", "<u4"), ("root", "<u4"), ("node_first", "<u4"), ("node_count", "<u4"),
                   ("block_first", "<u4"), ("block_count", "<u4"), ("triangles", "<u8")])
@@ -160,6 +160,8 @@ def _check_layouts():
     assert off(HEADER, "bounds_lo") == 72 and off(HEADER, "bvh_width") == 96 and off(HEADER, "header_crc32c") == 124
     assert TOC_ENTRY.itemsize == 48 and off(TOC_ENTRY, "offset") == 16 and off(TOC_ENTRY, "crc32c") == 40
     assert CHUNK_HEADER.itemsize == 16 and SECTION_ENTRY.itemsize == 24 and off(SECTION_ENTRY, "offset") == 8
+    assert INSTANCE_RECORD.itemsize == 112 and off(INSTANCE_RECORD, "linear") == 24
+    assert off(INSTANCE_RECORD, "inverse_linear") == 60 and off(INSTANCE_RECORD, "mesh") == 96
     assert MESH_ENTRY.itemsize == 32 and off(MESH_ENTRY, "triangles") == 24
     assert MESH_INFO.itemsize == 32 and off(MESH_INFO, "source_tri_first") == 24
     assert BATCHING_POINT_DESC.itemsize == 64 and off(BATCHING_POINT_DESC, "chunk_id") == 56

@@ -58,7 +58,10 @@ size_t check_scene(const Scene& scene, const InCoreScene<W, B>& ics, const Build
   for (size_t i = 0; i < ni && i < ics.instances().size(); ++i) {
     const Instance& inst = scene.instances[i];
     const fmt::InstanceRecord& r = ics.instances()[i];
-    EXPECT_EQ(std::memcmp(r.local_to_world, inst.transform.m.data(), sizeof r.local_to_world), 0) << "instance " << i;
+    for (int row = 0; row < 3; ++row) {
+      EXPECT_EQ(r.translation[row], inst.transform(row, 3)) << "instance " << i;
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(r.linear[3 * row + c], float(inst.transform(row, c))) << "instance " << i;
+    }
     EXPECT_EQ(r.mesh, inst.mesh);
     EXPECT_EQ(r.flags & 1u, inst.transform.det3() < 0 ? 1u : 0u) << "instance " << i;
     EXPECT_EQ((r.flags & 1u) != 0, inst.mirrored) << "instance " << i;
@@ -67,15 +70,13 @@ size_t check_scene(const Scene& scene, const InCoreScene<W, B>& ics, const Build
     EXPECT_EQ(r.source_gpu_instance, inst.gpu_instance);
     const bool singular = std::abs(inst.transform.det3()) == 0;
     if (!singular) {
-      // world_to_local ∘ local_to_world ≈ identity (the inverse was rounded to float once).
-      double scale = 0;
-      for (int k = 0; k < 12; ++k) scale = std::max(scale, std::abs(double(r.local_to_world[k])));
+      // inverse_linear · linear ≈ identity (the inverse was taken in double and rounded to float once).
       for (int row = 0; row < 3; ++row)
-        for (int col = 0; col < 4; ++col) {
-          double s = col == 3 ? double(r.world_to_local[row * 4 + 3]) : 0;
-          for (int k = 0; k < 3; ++k) s += double(r.world_to_local[row * 4 + k]) * double(r.local_to_world[k * 4 + col]);
+        for (int col = 0; col < 3; ++col) {
+          double s = 0;
+          for (int k = 0; k < 3; ++k) s += double(r.inverse_linear[row * 3 + k]) * double(r.linear[k * 3 + col]);
           const double expect = row == col ? 1 : 0;
-          EXPECT_NEAR(s, expect, 1e-5 * std::max(1.0, col == 3 ? scale : 1.0)) << "instance " << i << " (" << row << "," << col << ")";
+          EXPECT_NEAR(s, expect, 1e-5) << "instance " << i << " (" << row << "," << col << ")";
         }
     }
     eligible[i] = !singular && scene.meshes[inst.mesh].triangle_count() > 0;

@@ -150,7 +150,7 @@ TEST_F(Container, WrongVersionNamesBothVersions) {
   f.seekp(8);
   f.write(reinterpret_cast<const char*>(&v), 4);
   f.close();
-  EXPECT_EQ(open_and_read_all(p), "package version 7." + std::to_string(rtp::fmt::kVersionMinor) + " is not supported by this reader (version 3.x)");
+  EXPECT_EQ(open_and_read_all(p), "package version 7." + std::to_string(rtp::fmt::kVersionMinor) + " is not supported by this reader (version " + std::to_string(rtp::fmt::kVersionMajor) + ".x)");
 }
 
 TEST_F(Container, CorruptChunkIsNamed) {

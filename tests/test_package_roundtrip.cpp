@@ -97,7 +97,10 @@ void check_every_triangle_once(const Scene& s, const std::string& path) {
       const Mesh& m = s.meshes[in.mesh];
       const uint32_t slot = slots[rec[k].mesh];
       // Stored vertices are the mesh's local vertices exactly; the record places them.
-      for (int q = 0; q < 12; ++q) EXPECT_EQ(rec[k].local_to_world[q], in.transform.m[size_t(q)]);
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_EQ(rec[k].translation[r], in.transform(r, 3));  // SPEC §2.4: the double translation, exactly
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(rec[k].linear[3 * r + c], float(in.transform(r, c)));
+      }
       auto visit = [&](uint32_t prim, const std::array<Vec3f, 3>& v3) {
         ++count[{gid[k], prim}];
         ASSERT_LT(prim, m.triangle_count());
@@ -299,14 +302,14 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
     caught += outcome(d) != "";
   }
   EXPECT_EQ(caught, 1000);
-  // Packages of earlier major versions (1.x: no culling DAGs; 2.x: no inline DAG leaves) are refused with
-  // a version message.
-  for (const char major : {char(1), char(2)}) {
+  // Packages of earlier major versions (1.x: no culling DAGs; 2.x: no inline DAG leaves; 3.x: float 3x4
+  // instance transforms) are refused with a version message.
+  for (const char major : {char(1), char(2), char(3)}) {
     std::string v = bytes;
     v[8] = major;
     std::string expected = "package version ";
     expected += std::to_string(int(major)) + "." + std::to_string(rtp::fmt::kVersionMinor);
-    expected += " is not supported by this reader (version 3.x): it was written by an older rtpack-convert; "
+    expected += " is not supported by this reader (version 4.x): it was written by an older rtpack-convert; "
                 "convert the source again";
     EXPECT_EQ(outcome(v), expected);
   }

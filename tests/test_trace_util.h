@@ -44,7 +44,7 @@ inline Affine identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}; }
 inline Affine translation(double x, double y, double z) {
   return {1, 0, 0, float(x), 0, 1, 0, float(y), 0, 0, 1, float(z)};
 }
-// Inverse of a 3x4 affine in double, rounded to float (as SPEC §2.4 stores world_to_local).
+// Inverse of a 3x4 affine in double, rounded to float (SPEC §2.4 stores its 3x3 part).
 inline Affine invert(const Affine& m) {
   const double a = m[0], b = m[1], c = m[2], d = m[4], e = m[5], f = m[6], g = m[8], h = m[9], i = m[10];
   const double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
@@ -212,9 +212,14 @@ TestScene<W, B> build_scene(std::vector<std::vector<Tri>> meshes, std::vector<Te
   for (uint32_t i = 0; i < s.placements.size(); ++i) {
     const TestInstance& p = s.placements[i];
     fmt::InstanceRecord rec{};
-    const Affine inv = invert(p.local_to_world);
-    std::copy(p.local_to_world.begin(), p.local_to_world.end(), rec.local_to_world);
-    std::copy(inv.begin(), inv.end(), rec.world_to_local);
+    const Affine inv = invert(p.local_to_world);  // SPEC §2.4: double T, float L and L^-1
+    for (int r = 0; r < 3; ++r) {
+      rec.translation[r] = p.local_to_world[size_t(4 * r + 3)];
+      for (int c = 0; c < 3; ++c) {
+        rec.linear[3 * r + c] = p.local_to_world[size_t(4 * r + c)];
+        rec.inverse_linear[3 * r + c] = inv[size_t(4 * r + c)];
+      }
+    }
     rec.mesh = p.mesh;
     s.instances.push_back(rec);
     Box b;  // world bounds of the transformed vertices (double), rounded outward

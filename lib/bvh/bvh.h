@@ -111,9 +111,12 @@ double octant_key(const float lo[3], const float hi[3], int octant);
 // The 3x4 inverse of `m`, computed in double. False when m is singular (|det| tiny or not finite).
 bool invert_affine(const Affine3x4& m, double inverse[12]);
 
-// SPEC §2.4 record: local_to_world as stored, world_to_local inverted in double then rounded to float
-// (all zeros if singular), flags bit 0 = det(local_to_world) < 0.
+// SPEC §2.4 record: the translation in double, the 3x3 part rounded to float, its inverse taken in
+// double then rounded (all zeros if singular), flags bit 0 = det < 0.
 fmt::InstanceRecord make_instance_record(const Instance& instance);
+
+// False when the record's inverse is all zeros (singular transform) or not finite: never hit.
+bool record_invertible(const fmt::InstanceRecord& rec);
 
 // A float box containing the image under `m` of every point of the `local` boxes (corners
 // transformed in double, rounded outward, widened by one more float step).

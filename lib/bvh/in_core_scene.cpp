@@ -82,10 +82,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
       out.warnings_.push_back(instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH");
       continue;
     }
-    bool invertible = false;
-    for (float v : rec.world_to_local) invertible |= v != 0;
-    for (float v : rec.world_to_local) invertible &= std::isfinite(v);
-    if (!invertible) {
+    if (!record_invertible(rec)) {
       out.warnings_.push_back(instance_label(i, inst) + ": singular transform, left out of the instance BVH");
       continue;
     }

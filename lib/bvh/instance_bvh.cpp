@@ -38,16 +38,31 @@ bool invert_affine(const Affine3x4& m, double inv[12]) {
 
 fmt::InstanceRecord make_instance_record(const Instance& instance) {
   fmt::InstanceRecord rec{};
-  for (int i = 0; i < 12; ++i) rec.local_to_world[i] = instance.transform.m[size_t(i)];
+  const Affine3x4& m = instance.transform;
+  for (int r = 0; r < 3; ++r) {
+    rec.translation[r] = m(r, 3);
+    for (int c = 0; c < 3; ++c) rec.linear[3 * r + c] = float(m(r, c));
+  }
   double inv[12];
-  if (invert_affine(instance.transform, inv)) {
-    for (int i = 0; i < 12; ++i) rec.world_to_local[i] = float(inv[i]);
+  if (invert_affine(m, inv)) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) rec.inverse_linear[3 * r + c] = float(inv[4 * r + c]);
   }
   rec.mesh = instance.mesh;
-  rec.flags = instance.transform.det3() < 0 ? 1u : 0u;
+  const float* l = rec.linear;  // the determinant of what is stored, as a reader checks it
+  const double det = double(l[0]) * (double(l[4]) * l[8] - double(l[5]) * l[7]) -
+                     double(l[1]) * (double(l[3]) * l[8] - double(l[5]) * l[6]) +
+                     double(l[2]) * (double(l[3]) * l[7] - double(l[4]) * l[6]);
+  rec.flags = det < 0 ? 1u : 0u;
   rec.source_node = instance.node;
   rec.source_gpu_instance = instance.gpu_instance;
   return rec;
+}
+
+bool record_invertible(const fmt::InstanceRecord& rec) {
+  bool nonzero = false, finite = true;
+  for (float v : rec.inverse_linear) nonzero |= v != 0, finite &= std::isfinite(v);
+  return nonzero && finite;
 }
 
 Box3f transform_bounds(const Affine3x4& m, const Box3f* local, size_t count) {

@@ -94,18 +94,25 @@ struct Mat4d {
 
 Mat4d operator*(const Mat4d& a, const Mat4d& b);
 
-// Affine 3x4 (row-major, last column = translation), float storage: the stored instance transform.
+// Affine 3x4 (row-major, last column = translation), double storage: the instance transform as the
+// glTF node hierarchy composes it (a translation of 3000000.3 stays 3000000.3; SPEC §2.4 keeps it so).
 struct Affine3x4 {
-  std::array<float, 12> m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-  float operator()(int r, int c) const { return m[r * 4 + c]; }
-  float& operator()(int r, int c) { return m[r * 4 + c]; }
+  std::array<double, 12> m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  double operator()(int r, int c) const { return m[r * 4 + c]; }
+  double& operator()(int r, int c) { return m[r * 4 + c]; }
   static Affine3x4 from(const Mat4d& a) {
     Affine3x4 out;
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) out(r, c) = static_cast<float>(a(r, c));
+      for (int c = 0; c < 4; ++c) out(r, c) = a(r, c);
     return out;
   }
-  // Applies the stored float transform, evaluated in double.
+  // The transform rounded to float, row-major 3x4 (what Embree is given).
+  std::array<float, 12> to_float() const {
+    std::array<float, 12> f;
+    for (size_t i = 0; i < 12; ++i) f[i] = static_cast<float>(m[i]);
+    return f;
+  }
+  // Applies the transform in double.
   Vec3d apply(const Vec3d& p) const {
     Vec3d o;
     for (int r = 0; r < 3; ++r)

@@ -1,6 +1,7 @@
 #include "core/math.h"
 #include "oracle/embree_oracle.h"
 
+#include <array>
 #include <embree3/rtcore.h>
 
 #include <atomic>
@@ -163,7 +164,10 @@ EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality) : quality_
       RTCGeometry g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
       rtcSetGeometryInstancedScene(g, im.mesh_scenes[inst.mesh]);
       rtcSetGeometryTimeStepCount(g, 1);
-      rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, inst.transform.m.data());
+      // Embree takes float matrices: far from the origin its answer moves by the rounding of the
+      // translation (TESTING.md: where rtpack and Embree disagree there, the double reference decides).
+      const std::array<float, 12> m = inst.transform.to_float();
+      rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m.data());
       rtcCommitGeometry(g);
       rtcAttachGeometryByID(im.top, g, static_cast<unsigned>(i));
       rtcReleaseGeometry(g);

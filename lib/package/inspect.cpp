@@ -165,21 +165,23 @@ void read_resident(Ctx& c) {
   check_resident(c);
 }
 
-// The image of `b` under the row-major 3x4 `m`, in double, with a tolerance per axis of two float
-// steps at the magnitude of the terms (a writer rounding the transformed box to float stays inside).
-ItemBound transformed(const float m[12], const Box3d& b) {
+// The image of `b` under the record's transform (SPEC §2.4: float 3x3 L, double T), in double, with a
+// tolerance per axis of two float steps at the magnitude of the terms (a writer rounding the
+// transformed box to float stays inside; L was rounded from the double the writer used).
+ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   ItemBound out;
   if (b.empty()) return out;
+  const float* m = rec.linear;
   for (int corner = 0; corner < 8; ++corner) {
     double p[3], w[3];
     for (int a = 0; a < 3; ++a) p[a] = (corner >> a & 1) ? b.hi[a] : b.lo[a];
     for (int r = 0; r < 3; ++r)
-      w[r] = double(m[4 * r]) * p[0] + double(m[4 * r + 1]) * p[1] + double(m[4 * r + 2]) * p[2] + double(m[4 * r + 3]);
+      w[r] = double(m[3 * r]) * p[0] + double(m[3 * r + 1]) * p[1] + double(m[3 * r + 2]) * p[2] + rec.translation[r];
     out.box.grow(w);
   }
   for (int r = 0; r < 3; ++r) {
-    double mag = std::fabs(double(m[4 * r + 3]));
-    for (int a = 0; a < 3; ++a) mag += std::fabs(double(m[4 * r + a])) * std::max(std::fabs(b.lo[a]), std::fabs(b.hi[a]));
+    double mag = std::fabs(rec.translation[r]);
+    for (int a = 0; a < 3; ++a) mag += std::fabs(double(m[3 * r + a])) * std::max(std::fabs(b.lo[a]), std::fabs(b.hi[a]));
     out.tol[r] = 2.0 * double(FLT_EPSILON) * mag;
   }
   return out;
@@ -271,13 +273,13 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
     if (slot >= pd.slots.size()) continue;
     if (pd.slots[slot] & fmt::kPieceBit) {
       const uint32_t entry = pd.slots[slot] & ~fmt::kPieceBit;
-      if (entry < ne) pd.bounds[k] = transformed(pd.records[k].local_to_world, piece_root[entry]);
+      if (entry < ne) pd.bounds[k] = transformed(pd.records[k], piece_root[entry]);
       continue;
     }
     ++instances;
     if (pd.slots[slot] < c.res.meshes.size()) instanced += c.res.meshes[pd.slots[slot]].triangles;
     const auto it = c.mesh_root.find(pd.slots[slot]);
-    if (it != c.mesh_root.end()) pd.bounds[k] = transformed(pd.records[k].local_to_world, it->second);
+    if (it != c.mesh_root.end()) pd.bounds[k] = transformed(pd.records[k], it->second);
   }
   BvhShape top;
   if (n_te) {

@@ -38,8 +38,8 @@ Box3d top_lane(const fmt::TopNode& n, int l) {
   return b;
 }
 
-double det3(const float m[12]) {
-  const double a = m[0], b = m[1], c = m[2], d = m[4], e = m[5], f = m[6], g = m[8], h = m[9], i = m[10];
+double det3(const float m[9]) {  // row-major 3x3, in double
+  const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
   return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
 }
 
@@ -148,7 +148,7 @@ void Verifier::check_tables() {
       }
       ++uses[rec.mesh];
       instanced += res_.meshes[rec.mesh].triangles;
-      if (((rec.flags & 1u) != 0) != (det3(rec.local_to_world) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
+      if (((rec.flags & 1u) != 0) != (det3(rec.linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
     }
     if (instanced != h.instanced_triangles)
       out_.add("header: instanced_triangles " + str(h.instanced_triangles) + ", the instance table gives " + str(instanced));
@@ -355,8 +355,9 @@ void Verifier::point(const PointData& p) {
     }
     const fmt::InstanceRecord& grec = res_.instances[g];
     const fmt::MeshInfo& mi = res_.meshes[grec.mesh];
-    if (std::memcmp(rec.local_to_world, grec.local_to_world, sizeof rec.local_to_world) ||
-        std::memcmp(rec.world_to_local, grec.world_to_local, sizeof rec.world_to_local) || rec.flags != grec.flags ||
+    if (std::memcmp(rec.translation, grec.translation, sizeof rec.translation) ||
+        std::memcmp(rec.linear, grec.linear, sizeof rec.linear) ||
+        std::memcmp(rec.inverse_linear, grec.inverse_linear, sizeof rec.inverse_linear) || rec.flags != grec.flags ||
         rec.source_node != grec.source_node || rec.source_gpu_instance != grec.source_gpu_instance)
       out_.add(what + ": transform, flags or source differ from instance " + str(g) + " of the instance table");
     if (piece) {

@@ -135,10 +135,10 @@ fmt::Shading AttributeLookup::shade(const fmt::Hit& hit) const {
     for (int k = 0; k < 3; ++k)
       for (int a = 0; a < 3; ++a) n[a] += w[k] * c.normals[e.normal_first + tri[size_t(k)]][size_t(a)];
     // Normals transform by the inverse transpose of local->world: the transpose of world->local.
-    const float* wl = rec.world_to_local;
+    const float* wl = rec.inverse_linear;
     double out[3], len2 = 0;
     for (int a = 0; a < 3; ++a) {
-      out[a] = wl[a] * n[0] + wl[4 + a] * n[1] + wl[8 + a] * n[2];
+      out[a] = wl[a] * n[0] + wl[3 + a] * n[1] + wl[6 + a] * n[2];
       len2 += out[a] * out[a];
     }
     if (len2 > 0 && std::isfinite(len2))

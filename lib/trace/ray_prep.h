@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <cmath>
 
+#include "formats/bvh_layout.h"
 #include "formats/ray_file.h"
 #include "trace/ray_setup.h"
 
@@ -64,12 +65,18 @@ inline void setup_tri_ray(const float org[3], const float dir[3], float tnear, d
   out->tnear = tnear;
 }
 
-inline bool transform_ray(const float m[12], const float org[3], const float dir[3], float out_org[3], float out_dir[3]) {
+// SPEC §2.4: org' = L^-1 (org - T), dir' = L^-1 dir in double, T the double translation kept apart
+// (issue 11: a float 3x4 inverse put a small instance at 3e6 up to 0.25 units off). org - T is exact
+// to 2^-53 of the larger magnitude and products of floats are exact in double, so the only rounding
+// that matters is the final one to float, relative to the local coordinates.
+inline bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[3],
+                          float out_dir[3]) {
+  const double rel[3] = {double(org[0]) - inst.translation[0], double(org[1]) - inst.translation[1],
+                         double(org[2]) - inst.translation[2]};
+  const float* m = inst.inverse_linear;
   for (int r = 0; r < 3; ++r) {
-    // Products of two floats are exact in double, so contracting them into FMAs changes nothing.
-    const double o = double(m[4 * r]) * org[0] + double(m[4 * r + 1]) * org[1] + double(m[4 * r + 2]) * org[2] +
-                     double(m[4 * r + 3]);
-    const double d = double(m[4 * r]) * dir[0] + double(m[4 * r + 1]) * dir[1] + double(m[4 * r + 2]) * dir[2];
+    const double o = double(m[3 * r]) * rel[0] + double(m[3 * r + 1]) * rel[1] + double(m[3 * r + 2]) * rel[2];
+    const double d = double(m[3 * r]) * dir[0] + double(m[3 * r + 1]) * dir[1] + double(m[3 * r + 2]) * dir[2];
     if (!(std::fabs(o) <= FLT_MAX) || !(std::fabs(d) <= FLT_MAX)) return false;  // also NaN
     out_org[r] = static_cast<float>(o);
     out_dir[r] = static_cast<float>(d);

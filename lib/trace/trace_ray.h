@@ -33,7 +33,7 @@ inline Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::Box
 }
 
 // Molenaar 2019 §4.1 two-level BVH: walk the instance BVH with the world ray; at an instance leaf,
-// move the ray into the instance's local space (world_to_local, direction not renormalized, so t is
+// move the ray into the instance's local space (transform_ray, direction not renormalized, so t is
 // shared by both levels) and walk that mesh's BVH with the same tfar.
 template <class K, TraversalOrder O, bool kAny, int W, int B>
 inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* best) {
@@ -45,7 +45,7 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* be
       const uint32_t id = s.top_instances[k];
       const fmt::InstanceRecord& inst = s.instances[id];
       float org[3], dir[3];
-      if (!transform_ray(inst.world_to_local, ray.org, ray.dir, org, dir)) continue;
+      if (!transform_ray(inst, ray.org, ray.dir, org, dir)) continue;
       detail::BoxRay box;
       setup_box_ray(org, dir, ray.tnear, &box);
       detail::TriRay tri;

@@ -1,6 +1,6 @@
 // Voxelizing one batching point (Molenaar 2019 §4.2): pieces triangle by triangle, instances through
-// their meshes' coarse local occupancy, each through the exact inverse of the float world->local
-// matrix the tracer uses, with the margin of point_voxels.h.
+// their meshes' coarse local occupancy, each through the exact inverse of the world->local map the
+// tracer uses (float L^-1, double T), with the margin of point_voxels.h.
 #include "voxel/point_voxels.h"
 
 #include <tbb/parallel_for.h>
@@ -38,7 +38,7 @@ double row_norm(const double m[12]) {  // infinity norm of the 3x3 part
 }
 
 // The transform the tracer effectively applies to an instance's local geometry: the exact inverse of
-// its stored float world->local matrix (SPEC §2.4), and the error terms of point_voxels.h.
+// its stored world->local map (SPEC §2.4), and the error terms of point_voxels.h.
 struct Effective {
   bool usable = false;
   double minv[12];
@@ -53,14 +53,19 @@ struct Effective {
 Effective effective(const Instance& inst, const Aabb& local_bounds) {
   Effective e;
   const fmt::InstanceRecord rec = make_instance_record(inst);
-  bool zero = true;
-  for (float v : rec.world_to_local) zero = zero && v == 0;
-  if (zero) return e;  // singular: the tracer never hits it
+  if (!record_invertible(rec)) return e;  // singular: the tracer never hits it
+  // The tracer's world->local map (SPEC §2.4): M = [L^-1 | -L^-1·T] with the float L^-1 and double T.
+  // Its exact inverse is [(L^-1)^-1 | T]: the translation is T itself, the linear part inverted here.
   Affine3x4 m;
-  for (int i = 0; i < 12; ++i) m.m[size_t(i)] = rec.world_to_local[i];
-  if (!invert_affine(m, e.minv)) return e;
   double md[12];
-  for (int i = 0; i < 12; ++i) md[i] = rec.world_to_local[i];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) m(r, c) = md[4 * r + c] = rec.inverse_linear[3 * r + c];
+    m(r, 3) = 0;
+    md[4 * r + 3] = -(md[4 * r] * rec.translation[0] + md[4 * r + 1] * rec.translation[1] +
+                      md[4 * r + 2] * rec.translation[2]);
+  }
+  if (!invert_affine(m, e.minv)) return e;
+  for (int r = 0; r < 3; ++r) e.minv[4 * r + 3] = rec.translation[r];
   const double ni = row_norm(e.minv), nm = row_norm(md);
   double vmax = 0, tmax = 0;
   for (int k = 0; k < 3; ++k) {

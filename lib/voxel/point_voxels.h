@@ -50,8 +50,8 @@ struct PointProxy {
   uint64_t set_cells = 0;
 };
 
-// The float-rounding bound (SPEC §4.5): with u = 2^-24 and an instance whose stored world->local
-// matrix is M (the tracer moves rays with it) and Minv its exact inverse, the world point the tracer
+// The float-rounding bound (SPEC §4.5): with u = 2^-24 and an instance whose world->local map is
+// M = [L^-1 | -L^-1·T] (SPEC §2.4: the tracer moves rays with it) and Minv its exact inverse, the world point the tracer
 // reports for a hit lies within 16u·|Minv|·(|M_T| + 2|v|) + 16u·|Minv||M|·|org| of the instance's
 // geometry Minv(v) (|·| infinity norms, M_T its translation, v the local vertices): the local ray is
 // rounded to float (½u relative in origin and direction) and the watertight test decides within a
