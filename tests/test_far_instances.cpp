@@ -232,7 +232,9 @@ TEST(FarSmallInstances, AsExactAsAtTheOriginAgainstTheDoubleReference) {
     const auto t = judge(rays, target, ref, hits);
     print(name, t);
     expect_exact(name, t);
-    if (cull) EXPECT_GT(st.point_visits, 0u);
+    if (cull) {
+      EXPECT_GT(st.point_visits, 0u);
+    }
   }
 
   // The foil: Embree moves rays with float matrices, so its far hits are off by the rounding of the

@@ -56,9 +56,19 @@ TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
     EXPECT_TRUE(j["ok"].get<bool>());
     EXPECT_EQ(j["reference"], "embree");
     ASSERT_EQ(j["kinds"].size(), 6u);
+    uint64_t embree_errors = 0;
     for (const auto& k : j["kinds"]) {
       EXPECT_EQ(k["failures"], 0) << k.dump();
       EXPECT_GT(k["rays"].get<uint64_t>(), 0u) << k.dump();
+      embree_errors += k["reference_errors"].get<uint64_t>();
+      if (src.stem() == "far") {  // far from the origin the double reference settles the precision ties
+        EXPECT_EQ(k["precision_ties"], 0) << k.dump();
+      }
+    }
+    // far.glb's instances sit at 3e6 with translations float cannot hold: Embree's float matrices miss
+    // by more than its triangles, and the double reference must say so.
+    if (src.stem() == "far") {
+      EXPECT_GT(embree_errors, 0u);
     }
     EXPECT_LE(j["out_of_core"]["peak_cache_bytes"].get<uint64_t>(), j["out_of_core"]["memory_budget"].get<uint64_t>());
     const ToolResult b = run_tool("rtpack-validate", {pkg, "--rays", ray_count()}, dir, {}, 300);

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "oracle/embree_oracle.h"
+#include "oracle/reference.h"
 
 namespace rtp {
 namespace {
@@ -171,18 +172,20 @@ void CompareReport::merge(const CompareReport& o, size_t max_examples) {
   fail_missed += o.fail_missed;
   fail_extra += o.fail_extra;
   fail_t += o.fail_t;
+  reference_errors += o.reference_errors;
   for (const RayDiff& d : o.first_failures) keep(first_failures, max_examples, d);
   for (const RayDiff& d : o.first_ties) keep(first_ties, max_examples, d);
 }
 
 std::string CompareReport::summary() const {
-  char buf[400];
+  char buf[500];
   std::snprintf(buf, sizeof buf,
                 "%" PRIu64 " rays: %" PRIu64 " agree (%" PRIu64 " both miss, %" PRIu64 " both hit, %" PRIu64
                 " of them other prim at same t), %" PRIu64 " edge ties, %" PRIu64 " precision ties, %" PRIu64
-                " FAILURES (%" PRIu64 " missed, %" PRIu64 " extra, %" PRIu64 " other t), %" PRIu64 " skipped",
+                " FAILURES (%" PRIu64 " missed, %" PRIu64 " extra, %" PRIu64 " other t), %" PRIu64
+                " skipped, %" PRIu64 " reference errors settled by the double reference",
                 rays, agree(), both_miss, both_hit, same_t_other_prim, edge_ties, precision_ties, failures, fail_missed,
-                fail_extra, fail_t, skipped);
+                fail_extra, fail_t, skipped, reference_errors);
   return buf;
 }
 
@@ -197,33 +200,58 @@ CompareReport compare_closest(const fmt::Ray* rays, const fmt::Hit* ref, const f
                               const CompareOptions& o, const uint8_t* skip) {
   CompareReport rep;
   rep.rays = n;
+  std::vector<Verdict> verdict(n, Verdict::kSkipped);
+  std::vector<size_t> disputed;
+  for (size_t i = 0; i < n; ++i)
+    if (!(skip && skip[i])) {
+      verdict[i] = classify_hit(rays[i], ref[i], got[i], o);
+      if (verdict[i] != Verdict::kAgree) disputed.push_back(i);
+    }
+  // TESTING.md "The oracle": the double reference decides the disputed rays (one batch: it is slow).
+  std::vector<fmt::Hit> judge(n);
+  std::vector<uint8_t> judged(n, 0);
+  if (o.exact && !disputed.empty()) {
+    std::vector<fmt::Ray> dr(disputed.size());
+    std::vector<fmt::Hit> dh(disputed.size());
+    for (size_t k = 0; k < disputed.size(); ++k) dr[k] = rays[disputed[k]];
+    o.exact->closest(dr.data(), dh.data(), dr.size());
+    for (size_t k = 0; k < disputed.size(); ++k) judge[disputed[k]] = dh[k], judged[disputed[k]] = 1;
+  }
   for (size_t i = 0; i < n; ++i) {
-    if (skip && skip[i]) {
+    if (verdict[i] == Verdict::kSkipped) {
       ++rep.skipped;
       continue;
     }
-    const Verdict v = classify_hit(rays[i], ref[i], got[i], o);
-    const bool rh = is_hit(ref[i]), gh = is_hit(got[i]);
+    Verdict v = verdict[i];
+    const fmt::Hit& r = judged[i] ? judge[i] : ref[i];
+    if (judged[i]) {
+      v = classify_hit(rays[i], r, got[i], o);
+      if (v == Verdict::kAgree) {
+        ++rep.reference_errors;
+        continue;
+      }
+    }
+    const bool rh = is_hit(r), gh = is_hit(got[i]);
     switch (v) {
       case Verdict::kAgree:
         if (!rh) {
           ++rep.both_miss;
         } else {
           ++rep.both_hit;
-          if (ref[i].instance != got[i].instance || ref[i].prim != got[i].prim) ++rep.same_t_other_prim;
+          if (r.instance != got[i].instance || r.prim != got[i].prim) ++rep.same_t_other_prim;
         }
         break;
       case Verdict::kEdgeTie:
       case Verdict::kPrecisionTie:
         ++(v == Verdict::kEdgeTie ? rep.edge_ties : rep.precision_ties);
-        keep(rep.first_ties, o.max_examples, {i, v, rays[i], ref[i], got[i]});
+        keep(rep.first_ties, o.max_examples, {i, v, rays[i], r, got[i]});
         break;
       default:
         ++rep.failures;
         if (rh && !gh) ++rep.fail_missed;
         else if (!rh && gh) ++rep.fail_extra;
         else ++rep.fail_t;
-        keep(rep.first_failures, o.max_examples, {i, Verdict::kFail, rays[i], ref[i], got[i]});
+        keep(rep.first_failures, o.max_examples, {i, Verdict::kFail, rays[i], r, got[i]});
         break;
     }
   }
@@ -237,15 +265,17 @@ void AnyHitReport::merge(const AnyHitReport& o, size_t max_examples) {
   edge_ties += o.edge_ties;
   precision_ties += o.precision_ties;
   failures += o.failures;
+  reference_errors += o.reference_errors;
   for (const RayDiff& d : o.first_failures) keep(first_failures, max_examples, d);
 }
 
 std::string AnyHitReport::summary() const {
-  char buf[300];
+  char buf[400];
   std::snprintf(buf, sizeof buf,
                 "%" PRIu64 " rays: %" PRIu64 " any-hit consistent with closest-hit, %" PRIu64 " edge ties, %" PRIu64
-                " precision ties, %" PRIu64 " FAILURES, %" PRIu64 " skipped",
-                rays, consistent, edge_ties, precision_ties, failures, skipped);
+                " precision ties, %" PRIu64 " FAILURES, %" PRIu64 " skipped, %" PRIu64
+                " reference errors settled by the double reference",
+                rays, consistent, edge_ties, precision_ties, failures, skipped, reference_errors);
   return buf;
 }
 
@@ -259,27 +289,40 @@ AnyHitReport check_any_hit(const fmt::Ray* rays, const fmt::Hit* closest, const 
                            const CompareOptions& o, const uint8_t* skip, const fmt::Hit* own_closest) {
   AnyHitReport rep;
   rep.rays = n;
+  // TESTING.md "The oracle": inconsistent rays are judged against the double reference's closest hit.
+  std::vector<size_t> disputed;
+  for (size_t i = 0; i < n; ++i)
+    if (!(skip && skip[i]) && is_hit(closest[i]) != (occluded[i] != 0)) disputed.push_back(i);
+  std::vector<fmt::Hit> exact(o.exact ? disputed.size() : 0);
+  if (o.exact && !disputed.empty()) {
+    std::vector<fmt::Ray> dr(disputed.size());
+    for (size_t k = 0; k < disputed.size(); ++k) dr[k] = rays[disputed[k]];
+    o.exact->closest(dr.data(), exact.data(), dr.size());
+  }
+  size_t next = 0;
   for (size_t i = 0; i < n; ++i) {
     if (skip && skip[i]) {
       ++rep.skipped;
       continue;
     }
-    const bool hit = is_hit(closest[i]);
+    const bool judged = next < exact.size() && disputed[next] == i;
+    const fmt::Hit& c = judged ? exact[next++] : closest[i];
+    const bool hit = is_hit(c);
     const bool occ = occluded[i] != 0;
     if (hit == occ) {
-      ++rep.consistent;
-    } else if (hit && near_edge(closest[i], o.edge_eps)) {
+      ++(judged ? rep.reference_errors : rep.consistent);
+    } else if (hit && near_edge(c, o.edge_eps)) {
       ++rep.edge_ties;
-    } else if (hit && o.scene && near_edge_in_precision(*o.scene, rays[i], closest[i], o.precision_rel)) {
+    } else if (hit && o.scene && near_edge_in_precision(*o.scene, rays[i], c, o.precision_rel)) {
       ++rep.precision_ties;
-    } else if (!hit && own_closest && classify_hit(rays[i], closest[i], own_closest[i], o) == Verdict::kEdgeTie) {
+    } else if (!hit && own_closest && classify_hit(rays[i], c, own_closest[i], o) == Verdict::kEdgeTie) {
       ++rep.edge_ties;
-    } else if (!hit && own_closest && classify_hit(rays[i], closest[i], own_closest[i], o) == Verdict::kPrecisionTie) {
+    } else if (!hit && own_closest && classify_hit(rays[i], c, own_closest[i], o) == Verdict::kPrecisionTie) {
       ++rep.precision_ties;
     } else {
       ++rep.failures;
       fmt::Hit g{occ ? 0.0f : kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
-      keep(rep.first_failures, o.max_examples, {i, Verdict::kFail, rays[i], closest[i], g});
+      keep(rep.first_failures, o.max_examples, {i, Verdict::kFail, rays[i], c, g});
     }
   }
   return rep;

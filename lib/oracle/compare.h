@@ -30,6 +30,8 @@
 
 namespace rtp {
 
+class BruteForceReference;
+
 struct CompareOptions {
   double rel_tol = 1e-4;    ///< t tolerance, relative to max(1, t_ref)
   double edge_eps = 1e-5;   ///< barycentric distance to an edge that makes a disagreement a tie
@@ -37,6 +39,12 @@ struct CompareOptions {
   /// The scene both hits refer to: enables precision ties (nullptr: edge ties only).
   const Scene* scene = nullptr;
   double precision_rel = 4e-6;  ///< ~32 float ulps of the coordinate magnitude M
+  /// TESTING.md: where the candidate and the reference disagree, the double brute-force reference
+  /// decides. A ray the candidate answers as the double reference does is a
+  /// reference error (Embree's float instance matrices far from the origin), not a failure; any other
+  /// disagreement is judged against the double reference. nullptr: the reference alone judges.
+  /// (check_any_hit likewise.)
+  const BruteForceReference* exact = nullptr;
 };
 
 enum class Verdict : uint8_t { kAgree, kEdgeTie, kPrecisionTie, kFail, kSkipped };
@@ -83,6 +91,7 @@ struct CompareReport {
   uint64_t fail_missed = 0;  ///< failures where the reference hits and the candidate misses
   uint64_t fail_extra = 0;   ///< failures where the reference misses and the candidate hits
   uint64_t fail_t = 0;       ///< failures where both hit at different t
+  uint64_t reference_errors = 0;  ///< disagreements the double reference settled for the candidate
   std::vector<RayDiff> first_failures;
   std::vector<RayDiff> first_ties;
 
@@ -103,9 +112,11 @@ CompareReport compare_closest(const fmt::Ray* rays, const fmt::Hit* ref, const f
 /// RayDiffs is the closest hit, `got.t` is 0 (occluded) or +inf (not occluded).
 /// When checking a candidate's any-hit against a reference's closest hit, pass the candidate's own
 /// closest hits as `own_closest`: an occluded ray the reference misses is then a tie exactly when the
-/// candidate's closest hit is a tie against the reference's (classify_hit).
+/// candidate's closest hit is a tie against the reference's (classify_hit). With options.exact, an
+/// inconsistent ray is judged against the double reference's closest hit instead.
 struct AnyHitReport {
   uint64_t rays = 0, skipped = 0, consistent = 0, edge_ties = 0, precision_ties = 0, failures = 0;
+  uint64_t reference_errors = 0;  ///< inconsistent with `closest` but consistent with the double reference
   std::vector<RayDiff> first_failures;
   bool ok() const { return failures == 0; }
   void merge(const AnyHitReport& other, size_t max_examples = 5);
