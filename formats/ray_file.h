@@ -30,6 +30,9 @@ struct Hit {
 };
 static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 8 && offsetof(Hit, v) == 16);
 
+// A multi-hit file (rtpack-trace --multi-hit K) holds K Hit records per ray: its hits in (t, instance,
+// prim) order, each triangle once, then misses (SPEC §5).
+
 // 20 bytes per hit (rtpack-trace --shading, packages converted with --attributes): the shading
 // normal (the stored vertex normals interpolated with u, v, taken to world space by the inverse
 // transpose of the instance transform, normalized) and TEXCOORD_0 interpolated with u, v.

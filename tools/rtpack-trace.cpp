@@ -77,6 +77,11 @@ int main(int argc, char** argv) {
                  "also write N x {normal xyz, u, v} float32: interpolated world normal and TEXCOORD_0 per hit "
                  "(packages converted with --attributes)");
   app.add_flag("--any", any, "any-hit (occlusion): write one byte per ray, 1 = occluded");
+  uint32_t multi = 0;
+  app.add_option("--multi-hit", multi,
+                 "K: write the K closest hits of each ray (K hit records per ray, nearest first, then misses; SPEC §5), "
+                 "K in 1..64, in core")
+      ->check(CLI::Range(1u, rtp::kMaxMultiHit));
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
   app.add_option("--order", order, "traversal order: octant (stack) or active (Benthin's active list)")
@@ -107,6 +112,8 @@ int main(int argc, char** argv) {
   if (render && (!rays_path.empty() || !make_rays.empty()))
     return usage("--image traces the camera's own rays: leave out --rays and --make-camera-rays");
   if (render && any) return usage("--image shows closest hits: it cannot be used with --any");
+  if (multi && (any || render || app.count("--shading") || !budget_text.empty()))
+    return usage("--multi-hit writes the K closest hits in core: leave out --any, --image, --shading and --memory-budget");
   if (!render && (rays_path.empty() || hits_path.empty()))
     return usage("--rays and --hits are required (or --image PNG to render the camera's rays)");
   int img_w = 0, img_h = 0;
@@ -169,7 +176,8 @@ int main(int argc, char** argv) {
     if (int(opt.isa) > int(best))
       throw rtp::Error(rtp::ExitCode::kUsage, std::string("--isa ") + isa + ": this CPU supports up to " + rtp::isa_name(best));
     opt.order = order == "active" ? rtp::TraversalOrder::kActiveList : rtp::TraversalOrder::kOctantStack;
-    std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size());
+    std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size() * (multi ? multi : 1));
+    std::vector<uint32_t> counts(multi ? rays.size() : 0);
     std::vector<uint8_t> occ(any ? rays.size() : 0);
     std::atomic<uint64_t> invalid{0}, visits{0}, culled{0};
     rtp::OutOfCoreStats os;
@@ -181,18 +189,24 @@ int main(int argc, char** argv) {
       culled = os.culled_visits;
     } else {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-        const rtp::PackageTraceStats st = any ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
-                                              : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
+        const rtp::PackageTraceStats st =
+            any     ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
+            : multi ? tracer->multi(rays.data() + r.begin(), r.size(), multi, hits.data() + r.begin() * multi,
+                                    counts.data() + r.begin(), opt)
+                    : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
         invalid += st.invalid_rays;
         visits += st.point_visits;
         culled += st.culled_visits;
       });
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    uint64_t hit_count = 0;
+    uint64_t hit_count = 0, multi_hits = 0;
     if (any) {
       for (uint8_t o : occ) hit_count += o;
       rtp::write_output_file(hits_path, occ.data(), occ.size());
+    } else if (multi) {
+      for (uint32_t c : counts) hit_count += c > 0, multi_hits += c;
+      rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     } else {
       for (const auto& h : hits) hit_count += h.t != std::numeric_limits<float>::infinity();
       std::vector<rtp::fmt::Shading> shading;
@@ -232,6 +246,7 @@ int main(int argc, char** argv) {
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
+    if (multi) j["multi_hit"] = {{"k", multi}, {"hits", multi_hits}};
     if (render)
       j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
@@ -284,6 +299,9 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
                      (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
                      ls.check_seconds);
+      if (multi)
+        std::fprintf(stderr, "multi-hit: the %u closest hits of each ray, %llu in all (%.2f per ray that hits)\n",
+                     multi, (unsigned long long)multi_hits, hit_count ? double(multi_hits) / double(hit_count) : 0.0);
       std::fprintf(stderr,
                    "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s); "
                    "batching-point visits %llu, culled %llu (%.1f%%, culling %s)\n",

@@ -15,6 +15,9 @@
   template <int W, int B>                                                                                    \
   TraceStats any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,           \
                  TraversalOrder order);                                                                      \
+  template <int W, int B>                                                                                    \
+  TraceStats multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,         \
+                   bool cull, fmt::Hit* hits, uint32_t* counts, TraversalOrder order);                       \
   template <int B>                                                                                           \
   void block_test(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out);                 \
   template <int W>                                                                                           \

@@ -147,50 +147,56 @@ class Tracer final : public PackageTracer {
   }
 
   PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) const override {
-    PackageTraceStats st;
-    st.rays = n;
-    for (size_t i = 0; i < n; ++i) {
-      hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
-      if (!ray_is_valid(rays[i])) {
-        ++st.invalid_rays;
-        continue;
+    std::fill(hits, hits + n, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
+    return each_ray(rays, n, o, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray& ray) {
+      fmt::Hit h;
+      trace_closest<W, B>(pt.view, &local, &h, 1, o);
+      if (h.t < hits[i].t) {
+        hits[i] = h;
+        hits[i].instance = pt.global_ids[h.instance];
+        ray.tfar = h.t;  // later batching points only need to beat this hit
       }
-      fmt::Ray ray = rays[i];
-      traverse(ray, [&](const Point<W, B>& pt, size_t p) {
-        fmt::Ray local = ray;
-        if (!enter(p, local, o, st)) return false;
-        fmt::Hit h;
-        trace_closest<W, B>(pt.view, &local, &h, 1, o);
-        if (h.t < hits[i].t) {
-          hits[i] = h;
-          hits[i].instance = pt.global_ids[h.instance];
-          ray.tfar = h.t;  // later batching points only need to beat this hit
-        }
-        return false;
-      });
-    }
-    return st;
+      return false;
+    });
   }
 
   PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) const override {
-    PackageTraceStats st;
-    st.rays = n;
-    for (size_t i = 0; i < n; ++i) {
-      occluded[i] = 0;
-      if (!ray_is_valid(rays[i])) {
-        ++st.invalid_rays;
-        continue;
+    std::fill(occluded, occluded + n, uint8_t(0));
+    return each_ray(rays, n, o, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray&) {
+      trace_any<W, B>(pt.view, &local, occluded + i, 1, o);
+      return occluded[i] != 0;
+    });
+  }
+
+  PackageTraceStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
+                          const PackageTraceOptions& o) const override {
+    if (max_hits < 1 || max_hits > kMaxMultiHit)
+      throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
+                                        std::to_string(kMaxMultiHit) + "]");
+    const auto before = [](const fmt::Hit& a, const fmt::Hit& b) {  // TESTING.md item 7 order
+      return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
+    };
+    std::fill(hits, hits + n * max_hits, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
+    std::fill(counts, counts + n, 0u);
+    std::vector<fmt::Hit> point_hits(max_hits), merged;
+    merged.reserve(2 * size_t(max_hits));
+    return each_ray(rays, n, o, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray& ray) {
+      uint32_t c = 0;
+      trace_multi<W, B>(pt.view, &local, 1, max_hits, point_hits.data(), &c, o);
+      if (c == 0) return false;
+      // Merge the point's N closest (each triangle is in one point) with the ray's so far.
+      fmt::Hit* out = hits + i * max_hits;
+      merged.assign(out, out + counts[i]);
+      for (uint32_t k = 0; k < c; ++k) {
+        merged.push_back(point_hits[k]);
+        merged.back().instance = pt.global_ids[point_hits[k].instance];
       }
-      traverse(rays[i], [&](const Point<W, B>& pt, size_t p) {
-        fmt::Ray local = rays[i];
-        if (!enter(p, local, o, st)) return false;
-        uint8_t occ = 0;
-        trace_any<W, B>(pt.view, &local, &occ, 1, o);
-        occluded[i] = occ;
-        return occ != 0;
-      });
-    }
-    return st;
+      std::sort(merged.begin(), merged.end(), before);
+      counts[i] = uint32_t(std::min<size_t>(max_hits, merged.size()));
+      std::copy(merged.begin(), merged.begin() + counts[i], out);
+      if (counts[i] == max_hits) ray.tfar = out[max_hits - 1].t;  // later points must beat the N-th hit
+      return false;
+    });
   }
 
  private:
@@ -223,6 +229,27 @@ class Tracer final : public PackageTracer {
     if (voxel::dag_enter(grids_[p], dag_, ray)) return true;
     ++st.culled_visits;
     return false;
+  }
+
+  // Every valid ray (invalid ones are counted and left as the caller set them) front to back over the
+  // batching points it may hit: visit(i, point, local, ray) traces the point with `local` (the ray
+  // narrowed by the point's DAG), may shrink ray.tfar to cull later points, and returns true to stop.
+  template <class Visit>
+  PackageTraceStats each_ray(const fmt::Ray* rays, size_t n, const PackageTraceOptions& o, Visit&& visit) const {
+    PackageTraceStats st;
+    st.rays = n;
+    for (size_t i = 0; i < n; ++i) {
+      if (!ray_is_valid(rays[i])) {
+        ++st.invalid_rays;
+        continue;
+      }
+      fmt::Ray ray = rays[i];
+      traverse(ray, [&](const Point<W, B>& pt, size_t p) {
+        fmt::Ray local = ray;
+        return enter(p, local, o, st) && visit(i, pt, local, ray);
+      });
+    }
+    return st;
   }
 
   // Front-to-back over the top level: lanes sorted by entry distance, skipped once beyond ray.tfar

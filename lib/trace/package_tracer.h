@@ -41,6 +41,12 @@ class PackageTracer {
                                     const PackageTraceOptions& options) const = 0;
   virtual PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n,
                                 const PackageTraceOptions& options) const = 0;
+  // The N closest hits per ray across batching points, in trace_multi's layout (trace.h) with scene
+  // instance indices: points front to back, each entered only while its entry distance is within the
+  // N-th hit found so far (Gribble 2016 §2.1 node culling at the top level too). Ties at exactly the
+  // N-th t across instances of one point are ordered by the point's local instance order.
+  virtual PackageTraceStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
+                                  const PackageTraceOptions& options) const = 0;
   virtual uint64_t batching_points() const = 0;
   virtual bool has_dags() const = 0;
   // One batching point on its own (for tests of culling): the closest hit of point p's geometry within

@@ -2,6 +2,9 @@
 // and the public entry points of trace.h / kernels.h.
 #include "trace/trace.h"
 
+#include <string>
+
+#include "core/error.h"
 #include "trace/isa_entry.h"
 #include "trace/kernels.h"
 
@@ -71,6 +74,21 @@ TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t
   return scalar::any<W, B>(scene, rays, occluded, n, options.order);
 }
 
+template <int W, int B>
+TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
+                       fmt::Hit* hits, uint32_t* counts, const TraceOptions& options, MultiHitMethod method) {
+  if (max_hits < 1 || max_hits > kMaxMultiHit)
+    throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
+                                      std::to_string(kMaxMultiHit) + "]");
+  const bool cull = method == MultiHitMethod::kNodeCulling;
+  switch (usable(options.isa)) {
+    case Isa::kAvx512: return avx512::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+    case Isa::kAvx2: return avx2::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+    case Isa::kScalar: break;
+  }
+  return scalar::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+}
+
 template <int B>
 void intersect_block(Isa isa, const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {
   switch (usable(isa)) {
@@ -95,7 +113,9 @@ void intersect_node(Isa isa, const fmt::WideNode<W>& node, const fmt::Ray& ray, 
   template TraceStats trace_closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,     \
                                           const TraceOptions&);                                            \
   template TraceStats trace_any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t,          \
-                                      const TraceOptions&);
+                                      const TraceOptions&);                                                \
+  template TraceStats trace_multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t,         \
+                                        fmt::Hit*, uint32_t*, const TraceOptions&, MultiHitMethod);
 RTP_INSTANTIATE_PUBLIC_WB(4, 4)
 RTP_INSTANTIATE_PUBLIC_WB(8, 8)
 RTP_INSTANTIATE_PUBLIC_WB(16, 16)

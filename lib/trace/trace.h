@@ -1,5 +1,5 @@
 #pragma once
-// In-core tracing kernels over the two-level wide BVH: closest hit and any hit, scalar reference,
+// In-core tracing kernels over the two-level wide BVH: closest hit, any hit and the N closest, scalar reference,
 // AVX2 and AVX-512 paths chosen at run time, two traversal orders.
 #include <cstddef>
 #include <cstdint>
@@ -38,5 +38,17 @@ TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt
 template <int W, int B>
 TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,
                      const TraceOptions& options);
+
+// The N closest hits of each ray, N = max_hits in [1, kMaxMultiHit]: hits[i·N, i·N + N) holds ray i's
+// hits in (t, instance, prim) order, each triangle once, then misses (t = +inf); counts[i] = how many
+// are hits. kNodeCulling (Gribble 2016 §2.1) culls nodes beyond the N-th hit found so far;
+// kCollectAll is the naive baseline (every hit, sorted, cut to N; allocates), same answers.
+// Throws rtp::Error(kUsage) for N outside [1, kMaxMultiHit].
+inline constexpr uint32_t kMaxMultiHit = 64;
+enum class MultiHitMethod { kNodeCulling, kCollectAll };
+template <int W, int B>
+TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
+                       fmt::Hit* hits, uint32_t* counts, const TraceOptions& options,
+                       MultiHitMethod method = MultiHitMethod::kNodeCulling);
 
 }  // namespace rtp

@@ -7,7 +7,7 @@
 #endif
 #define RTP_ISA_NS avx2
 #include "trace/kernels_simd.h"
-#include "trace/trace_ray.h"
+#include "trace/multi_hit.h"
 
 namespace rtp::avx2 {
 using Avx2Kernels = SimdKernels<F4, F8, F8>;

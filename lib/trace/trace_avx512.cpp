@@ -8,7 +8,7 @@
 #define RTP_ISA_NS avx512
 #include "trace/kernels_simd.h"
 #include "trace/simd_avx512.h"
-#include "trace/trace_ray.h"
+#include "trace/multi_hit.h"
 
 namespace rtp::avx512 {
 using Avx512Kernels = SimdKernels<F4, F8, F16>;

@@ -1,9 +1,11 @@
 #pragma once
 // One ray through the two-level BVH (instance level, then mesh level) and the batch entry points,
 // generic over a kernel set K (kernels_scalar.h / kernels_simd.h). Each ISA translation unit
-// includes this once inside its own namespace and instantiates it with RTP_DEFINE_ISA_ENTRY_POINTS.
+// includes this (through multi_hit.h) once inside its own namespace and instantiates it with
+// RTP_DEFINE_ISA_ENTRY_POINTS.
 #include <cmath>
 #include <cstddef>
+#include <type_traits>
 
 #include "trace/isa_entry.h"
 #include "trace/kernel_common.h"
@@ -32,11 +34,39 @@ inline Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::Box
     return walk_active_list<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
 }
 
+// What a walk does with one leaf block's hits: keep the closest (ClosestSink), stop at any (AnySink), or
+// keep the N closest (multi_hit.h). tfar() is the live far distance both levels cull with.
+struct ClosestSink {
+  Closest best;
+  float& tfar() { return best.t; }
+  template <class K, int B>
+  Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t id) {
+    BlockHits<B> h;
+    for (uint32_t m = K::template block<B>(blk, tri, best.t, &h); m; m &= m - 1) {
+      const int i = lowest_bit(m);
+      const float t = h.t[i];
+      const uint32_t prim = blk.prim[i];
+      if (t < best.t || (t == best.t && (id < best.instance || (id == best.instance && prim < best.prim))))
+        best = {t, id, prim, h.u[i], h.v[i]};
+    }
+    return Walk::kDone;
+  }
+};
+
+struct AnySink {
+  float t;
+  float& tfar() { return t; }
+  template <class K, int B>
+  Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t) {
+    return K::template block_any<B>(blk, tri, t) ? Walk::kStop : Walk::kDone;
+  }
+};
+
 // Molenaar 2019 §4.1 two-level BVH: walk the instance BVH with the world ray; at an instance leaf,
 // move the ray into the instance's local space (transform_ray, direction not renormalized, so t is
 // shared by both levels) and walk that mesh's BVH with the same tfar.
-template <class K, TraversalOrder O, bool kAny, int W, int B>
-inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* best) {
+template <class K, TraversalOrder O, int W, int B, class Sink>
+inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink) {
   detail::BoxRay world;
   setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
   auto instance_leaf = [&](uint32_t ref) -> Walk {
@@ -59,20 +89,8 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* be
         if (!tri_ready) setup_tri_ray(org, dir, ray.tnear, &tri), tri_ready = true;
         const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
         for (uint32_t b = b0; b < b0 + nb; ++b) {
-          const fmt::LeafBlock<B>& blk = mesh.blocks[b];
-          if constexpr (kAny) {
-            if (K::template block_any<B>(blk, tri, best->t)) return Walk::kStop;
-          } else {
-            BlockHits<B> h;
-            for (uint32_t m = K::template block<B>(blk, tri, best->t, &h); m; m &= m - 1) {
-              const int i = lowest_bit(m);
-              const float t = h.t[i];
-              const uint32_t prim = blk.prim[i];
-              if (t < best->t ||
-                  (t == best->t && (id < best->instance || (id == best->instance && prim < best->prim))))
-                *best = {t, id, prim, h.u[i], h.v[i]};
-            }
-          }
+          const Walk w = sink.template block<K, B>(mesh.blocks[b], tri, id);
+          if (w != Walk::kDone) return w;
         }
         return Walk::kDone;
       };
@@ -80,12 +98,12 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Closest* be
         const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
         for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
       };
-      const Walk w = walk<O, K, W>(mesh.nodes, mesh.root, box, best->t, block_leaf, prefetch_block);
+      const Walk w = walk<O, K, W>(mesh.nodes, mesh.root, box, sink.tfar(), block_leaf, prefetch_block);
       if (w != Walk::kDone) return w;
     }
     return Walk::kDone;
   };
-  return walk<O, K, W>(s.top_nodes, s.top_root, world, best->t, instance_leaf, [](uint32_t) {});
+  return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
 }
 
 template <class K, TraversalOrder O, bool kAny, int W, int B>
@@ -95,22 +113,24 @@ inline TraceStats trace_batch(const SceneView<W, B>& s, const fmt::Ray* rays, fm
   stats.rays = n;
   for (size_t i = 0; i < n; ++i) {
     const fmt::Ray ray = rays[i];
-    Closest best{ray.tfar, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
+    std::conditional_t<kAny, AnySink, ClosestSink> sink;
+    if constexpr (kAny)
+      sink.t = ray.tfar;
+    else
+      sink.best = {ray.tfar, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
     Walk w = Walk::kDone;
     if (!ray_is_valid(ray))
       ++stats.invalid_rays;
     else if (direction_usable(ray.dir))
-      w = trace_one<K, O, kAny, W, B>(s, ray, &best);
-    if (w == Walk::kOverflow) {
-      ++stats.overflow_rays;
-      best.instance = fmt::Hit::kNone;
-    }
+      w = trace_one<K, O>(s, ray, sink);
+    if (w == Walk::kOverflow) ++stats.overflow_rays;
     if constexpr (kAny) {
       occluded[i] = w == Walk::kStop ? 1 : 0;
-    } else if (best.instance == fmt::Hit::kNone) {
+    } else if (w == Walk::kOverflow || sink.best.instance == fmt::Hit::kNone) {
       hits[i] = {INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
     } else {
-      hits[i] = {best.t, best.instance, best.prim, best.u, best.v};
+      const Closest& b = sink.best;
+      hits[i] = {b.t, b.instance, b.prim, b.u, b.v};
     }
   }
   return stats;
@@ -154,6 +174,16 @@ inline void node_test_impl(const fmt::WideNode<W>& node, const fmt::Ray& ray, No
                ? trace_batch<K, TraversalOrder::kOctantStack, true>(s, rays, nullptr, occluded, n)            \
                : trace_batch<K, TraversalOrder::kActiveList, true>(s, rays, nullptr, occluded, n);            \
   }                                                                                                           \
+  template <int W, int B>                                                                                     \
+  TraceStats multi(const SceneView<W, B>& s, const fmt::Ray* rays, size_t n, uint32_t max_hits, bool cull,   \
+                   fmt::Hit* hits, uint32_t* counts, TraversalOrder order) {                                  \
+    constexpr TraversalOrder kOct = TraversalOrder::kOctantStack, kAct = TraversalOrder::kActiveList;         \
+    if (order == kOct)                                                                                        \
+      return cull ? multi_batch<K, kOct, true>(s, rays, n, max_hits, hits, counts)                            \
+                  : multi_batch<K, kOct, false>(s, rays, n, max_hits, hits, counts);                          \
+    return cull ? multi_batch<K, kAct, true>(s, rays, n, max_hits, hits, counts)                              \
+                : multi_batch<K, kAct, false>(s, rays, n, max_hits, hits, counts);                            \
+  }                                                                                                           \
   template <int B>                                                                                            \
   void block_test(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {                 \
     block_test_impl<K, B>(block, ray, out);                                                                   \
@@ -175,7 +205,9 @@ inline void node_test_impl(const fmt::WideNode<W>& node, const fmt::Ray& ray, No
 #define RTP_INSTANTIATE_WB(W, B)                                                                        \
   template TraceStats closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,        \
                                     TraversalOrder);                                                    \
-  template TraceStats any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, TraversalOrder);
+  template TraceStats any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, TraversalOrder); \
+  template TraceStats multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t, bool, fmt::Hit*, \
+                                  uint32_t*, TraversalOrder);
 #define RTP_INSTANTIATE_N(N)                                                                 \
   template void block_test<N>(const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*); \
   template void node_test<N>(const fmt::WideNode<N>&, const fmt::Ray&, NodeHits<N>*);

@@ -6,6 +6,6 @@
 #endif
 #define RTP_ISA_NS scalar
 #include "trace/kernels_scalar.h"
-#include "trace/trace_ray.h"
+#include "trace/multi_hit.h"
 
 RTP_DEFINE_ISA_ENTRY_POINTS(ScalarKernels)
