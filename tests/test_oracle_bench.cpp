@@ -96,6 +96,31 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
 
 // The default run is the quick one (W=8, octant order, every kind once per thread count); --all is the sweep
 // (above). The table has a header and one row per record, each labelled as an in-memory B/tri.
+// --multi-hit: one record per (kind, N), node culling checked against collect-all on every ray, and
+// the rays counted on which Embree's gathering filter agrees.
+TEST_F(OracleBench, MultiHitRecordsAreCheckedAnswers) {
+  const std::string scene = q(kSamples + "/generated/gallery.glb");
+  const ToolRun r = run(scene + " --multi-hit 1,8,64 --rays 600 --reps 1 --threads 1 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const json j = json::parse(r.out);
+  ASSERT_EQ(j["records"].size(), 6u);  // random and bounce x 3 values of N
+  std::set<std::string> kinds;
+  for (const json& rec : j["records"]) {
+    kinds.insert(rec["kind"].get<std::string>());
+    EXPECT_TRUE(rec["same_as_collect_all"].get<bool>()) << rec.dump();
+    const uint64_t rays = rec["rays"].get<uint64_t>();
+    EXPECT_GT(rays, 0u);
+    EXPECT_GE(rec["rays_agreeing_with_embree"].get<uint64_t>() * 100, rays * 99) << rec.dump();
+    for (const char* k : {"node_culling_seconds", "collect_all_seconds", "embree_gather_seconds"})
+      EXPECT_GT(rec[k].get<double>(), 0.0) << k;
+    EXPECT_LE(rec["hits_per_ray"].get<double>(), rec["n"].get<double>());
+  }
+  EXPECT_EQ(kinds, (std::set<std::string>{"random", "bounce"}));
+  EXPECT_EQ(run(scene + " --multi-hit 0").code, 1);
+  EXPECT_EQ(run(scene + " --multi-hit 1,65").code, 1);
+  EXPECT_EQ(run(scene + " --multi-hit 4 --convert").code, 1);
+}
+
 TEST_F(OracleBench, DefaultsAreTheQuickRun) {
   const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --json");
   ASSERT_EQ(r.code, 0) << r.out;

@@ -41,6 +41,7 @@
 #include "bench_budget.h"
 #include "bench_convert.h"
 #include "bench_dag.h"
+#include "bench_multi_hit.h"
 #include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
@@ -480,7 +481,11 @@ int main(int argc, char** argv) {
   CLI::Option* ooc_opt = bench::add_budget_options(app, budget);
   ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
   bench::DagBenchConfig dag;
-  bench::add_dag_options(app, dag)->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
+  CLI::Option* dag_opt = bench::add_dag_options(app, dag);
+  dag_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
+  bench::MultiHitBenchConfig multi;
+  bench::add_multi_hit_options(app, multi)
+      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -542,6 +547,15 @@ int main(int argc, char** argv) {
       if (app.count("--rays")) budget.rays = cfg.rays;
       if (app.count("--kinds")) budget.kinds = cfg.kinds;
       return bench::run_budget_bench(budget);
+    }
+    if (app.count("--multi-hit")) {
+      multi.scene_path = cfg.scene_path;
+      multi.allow_paths = cfg.allow_paths;
+      multi.threads = threads == "all" ? 0 : cfg.threads[0];
+      multi.reps = cfg.reps, multi.json = cfg.json, multi.seed = cfg.seed, multi.isa = cfg.isa;
+      if (app.count("--rays")) multi.rays = cfg.rays;
+      if (app.count("--kinds")) multi.kinds = cfg.kinds;
+      return bench::run_multi_hit_bench(multi);
     }
     if (app.count("--dag")) {
       dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);

@@ -1,6 +1,7 @@
 #include "core/math.h"
 #include "oracle/embree_oracle.h"
 
+#include <algorithm>
 #include <array>
 #include <embree3/rtcore.h>
 
@@ -114,7 +115,8 @@ struct EmbreeOracle::Impl {
   }
 };
 
-EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality) : quality_(quality) {
+EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality, bool gather_filter)
+    : quality_(quality), gather_filter_(gather_filter) {
   const auto start = std::chrono::steady_clock::now();
   impl_ = new Impl;
   try {
@@ -123,7 +125,8 @@ EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality) : quality_
     if (!im.device) throw Error(ExitCode::kInternal, "Embree oracle: rtcNewDevice failed");
     rtcSetDeviceErrorFunction(im.device, on_embree_error, &im.errors);
     const RTCBuildQuality q = to_rtc(quality);
-    const auto flags = RTCSceneFlags(RTC_SCENE_FLAG_ROBUST);
+    const auto flags =
+        RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | (gather_filter ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
 
     im.mesh_scenes.assign(scene.meshes.size(), nullptr);
     for (size_t m = 0; m < scene.meshes.size(); ++m) {
@@ -306,6 +309,70 @@ OracleStats EmbreeOracle::occluded(const fmt::Ray* rays, uint8_t* occluded, size
       if (m > 0) rtcOccluded1M(top, &ctx, buf, m, sizeof(RTCRay));
       // Embree sets tfar = -inf on an occluded ray.
       for (unsigned k = 0; k < m; ++k) occluded[b + slot[k]] = buf[k].tfar == -kInf ? 1 : 0;
+    }
+    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
+    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
+  });
+  return {n, invalid.load(), unsupported.load()};
+}
+
+namespace {
+
+// Gribble 2016 §2.2: Embree's multi-hit is a filter that saves each hit and rejects it (valid = 0), so
+// the ray's interval never shrinks and every node along it is visited.
+struct GatherContext {
+  RTCIntersectContext ctx;  // first: Embree passes &ctx back to the filter
+  std::vector<fmt::Hit>* hits;
+};
+
+void gather_hit(const RTCFilterFunctionNArguments* a) {
+  auto* g = reinterpret_cast<GatherContext*>(a->context);
+  for (unsigned i = 0; i < a->N; ++i) {
+    if (a->valid[i] != -1) continue;
+    g->hits->push_back({RTCRayN_tfar(a->ray, a->N, i), RTCHitN_instID(a->hit, a->N, i, 0), RTCHitN_primID(a->hit, a->N, i),
+                        RTCHitN_u(a->hit, a->N, i), RTCHitN_v(a->hit, a->N, i)});
+    a->valid[i] = 0;
+  }
+}
+
+}  // namespace
+
+OracleStats EmbreeOracle::multi_hit(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits,
+                                    uint32_t* counts) const {
+  if (!gather_filter_) throw Error(ExitCode::kUsage, "Embree oracle: multi_hit needs an oracle built with gather_filter");
+  if (max_hits == 0) throw Error(ExitCode::kUsage, "Embree oracle: multi_hit needs N >= 1");
+  std::atomic<uint64_t> invalid{0}, unsupported{0};
+  RTCScene top = impl_->top;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
+    std::vector<fmt::Hit> all;
+    GatherContext g;
+    rtcInitIntersectContext(&g.ctx);
+    g.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    g.ctx.filter = gather_hit;
+    g.hits = &all;
+    uint64_t bad = 0, unsup = 0;
+    for (size_t i = range.begin(); i < range.end(); ++i) {
+      fmt::Hit* out = hits + i * max_hits;
+      for (uint32_t k = 0; k < max_hits; ++k) set_miss(out[k]);
+      counts[i] = 0;
+      const RayStatus st = ray_status(rays[i]);
+      if (st != RayStatus::kValid) {
+        (st == RayStatus::kInvalid ? bad : unsup) += 1;
+        continue;
+      }
+      RTCRayHit rh;
+      load_ray(rays[i], rh.ray);
+      rh.hit.geomID = rh.hit.primID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      all.clear();
+      rtcIntersect1(top, &g.ctx, &rh);
+      std::sort(all.begin(), all.end(), [](const fmt::Hit& a, const fmt::Hit& b) {
+        return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
+      });
+      all.erase(std::unique(all.begin(), all.end(),
+                            [](const fmt::Hit& a, const fmt::Hit& b) { return a.instance == b.instance && a.prim == b.prim; }),
+                all.end());
+      counts[i] = uint32_t(std::min<size_t>(max_hits, all.size()));
+      std::copy(all.begin(), all.begin() + counts[i], out);
     }
     if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
     if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);

@@ -61,7 +61,8 @@ class EmbreeOracle {
  public:
   /// Builds the Embree scene. Throws rtp::Error(kInternal) if Embree reports an error.
   /// Meshes without triangles get no geometry; their instances never hit anything.
-  explicit EmbreeOracle(const Scene& scene, OracleQuality quality = OracleQuality::kHigh);
+  /// gather_filter: scenes built with RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION, for multi_hit().
+  explicit EmbreeOracle(const Scene& scene, OracleQuality quality = OracleQuality::kHigh, bool gather_filter = false);
   ~EmbreeOracle();
   EmbreeOracle(const EmbreeOracle&) = delete;
   EmbreeOracle& operator=(const EmbreeOracle&) = delete;
@@ -74,6 +75,12 @@ class EmbreeOracle {
   OracleStats occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n,
                        RayCoherence coherence = RayCoherence::kIncoherent) const;
 
+  /// The N closest hits (N = max_hits), as Embree 3 users get them (Gribble 2016 §2.2, the
+  /// reject-intersection callback of Amstutz et al. 2015): an intersection-context filter records every
+  /// hit and rejects it so traversal goes on over [tnear, tfar]; then sorted by (t, instance, prim) and
+  /// cut to N. Layout as rtp::trace_multi (trace.h). Needs gather_filter (else Error(kUsage)).
+  OracleStats multi_hit(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts) const;
+
   /// Wall time of the build: copying the triangles into Embree buffers and committing every mesh
   /// scene and the instance scene (the same work InCoreScene::build does from an rtp::Scene).
   double build_seconds() const { return build_seconds_; }
@@ -85,6 +92,7 @@ class EmbreeOracle {
   Impl* impl_ = nullptr;
   double build_seconds_ = 0;
   OracleQuality quality_;
+  bool gather_filter_ = false;
   uint64_t geometries_ = 0;
 };
 
