@@ -9,8 +9,10 @@
 
 #include "bvh/bvh.h"
 #include "mesh/shapes.h"
+#include "oracle/rays.h"
 #include "scene/import.h"
 #include "test_bvh_check.h"
+#include "trace/trace.h"
 
 namespace rtp {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
@@ -261,6 +263,62 @@ TEST(BvhScene, TransformBoundsContainCorners) {
       EXPECT_GT(double(w.hi[a]), q2[a]);
     }
   }
+}
+
+// Issue 11: a scene whose only instance is the identity skips the instance level (SceneView::direct).
+// The answers must be those of the two-level walk, bit for bit, for every query, ISA and order; any
+// other transform, or a second instance, keeps the two levels.
+TEST(InCoreSceneDirect, OneIdentityInstanceSkipsTheInstanceLevelWithTheSameAnswers) {
+  Scene scene = import_gltf(RTP_SOURCE_DIR "/samples/khronos/Suzanne/glTF/Suzanne.gltf");
+  ASSERT_EQ(scene.instances.size(), 1u);
+  scene.instances[0].transform = Affine3x4{};
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(scene);
+  const SceneView<8, 8> direct = bvh.view();
+  ASSERT_EQ(direct.direct, 0u);
+  SceneView<8, 8> two_level = direct;
+  two_level.direct = kNoDirectInstance;
+  RayGenOptions g;
+  g.seed = 4;
+  g.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(two_level, r, h, n, TraceOptions{}); };
+  std::vector<fmt::Ray> rays;
+  for (RayKind k : kAllRayKinds) {
+    const auto v = generate_rays(scene, k, 800, g);
+    rays.insert(rays.end(), v.begin(), v.end());
+  }
+  const size_t n = rays.size();
+  for (Isa isa : {Isa::kScalar, Isa::kAvx2, Isa::kAvx512}) {
+    if (int(isa) > int(detect_isa())) continue;
+    for (TraversalOrder order : {TraversalOrder::kOctantStack, TraversalOrder::kActiveList}) {
+      const TraceOptions o{isa, order};
+      std::vector<fmt::Hit> a(n), b(n), ma(8 * n), mb(8 * n);
+      std::vector<uint8_t> oa(n), ob(n);
+      std::vector<uint32_t> ca(n), cb(n);
+      trace_closest<8, 8>(direct, rays.data(), a.data(), n, o);
+      trace_closest<8, 8>(two_level, rays.data(), b.data(), n, o);
+      trace_any<8, 8>(direct, rays.data(), oa.data(), n, o);
+      trace_any<8, 8>(two_level, rays.data(), ob.data(), n, o);
+      trace_multi<8, 8>(direct, rays.data(), n, 8, ma.data(), ca.data(), o);
+      trace_multi<8, 8>(two_level, rays.data(), n, 8, mb.data(), cb.data(), o);
+      const std::string what = std::string(isa_name(isa)) + " " + order_name(order);
+      EXPECT_EQ(std::memcmp(a.data(), b.data(), n * sizeof(fmt::Hit)), 0) << what;
+      EXPECT_EQ(oa, ob) << what;
+      EXPECT_EQ(ca, cb) << what;
+      EXPECT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(fmt::Hit)), 0) << what;
+      size_t hits = 0;
+      for (const fmt::Hit& h : a) hits += h.t < INFINITY;
+      EXPECT_GT(hits, n / 4) << what;
+    }
+  }
+  // Not the identity, or not the only instance: two levels.
+  Scene moved = scene;
+  moved.instances[0].transform(0, 3) = 1e-3;
+  EXPECT_EQ((InCoreScene<8, 8>::build(moved).view().direct), kNoDirectInstance);
+  Scene scaled = scene;
+  scaled.instances[0].transform(1, 1) = 2;
+  EXPECT_EQ((InCoreScene<8, 8>::build(scaled).view().direct), kNoDirectInstance);
+  Scene two = scene;
+  two.instances.push_back(scene.instances[0]);
+  EXPECT_EQ((InCoreScene<8, 8>::build(two).view().direct), kNoDirectInstance);
 }
 
 }}  // namespace

@@ -106,6 +106,7 @@ SceneView<W, B> InCoreScene<W, B>::view() const {
   v.top_instances = top_.items.data();
   v.instances = records_.data();
   v.meshes = views_.data();
+  v.direct = direct_instance(records_.data(), records_.size());
   return v;
 }
 

@@ -399,7 +399,8 @@ class Batched final : public OutOfCoreTracer {
                      std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) + " is in none of the point's mesh segments");
       pt.meshes[k] = *found;
     }
-    pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data()};
+    pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
+               direct_instance(s.records, s.n_records)};
   }
 
   const PackageReader& r_;

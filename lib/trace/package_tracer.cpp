@@ -121,7 +121,8 @@ class Tracer final : public PackageTracer {
           pt.meshes[k] = it->second;
         }
       }
-      pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data()};
+      pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
+               direct_instance(s.records, s.n_records)};
       pt.instance_count = s.n_records;
     }
     load_.total_seconds = seconds_since(t_start);

@@ -7,6 +7,22 @@
 
 namespace rtp {
 
+inline constexpr uint32_t kNoDirectInstance = 0xFFFFFFFFu;
+
+// 0 when the `count` records are one identity record (T = 0, L = L^-1 = I exactly: transform_ray would
+// return the world ray unchanged), else kNoDirectInstance. For the builders of views (baseline code).
+inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t count) {
+  if (count != 1) return kNoDirectInstance;
+  const fmt::InstanceRecord& r = records[0];
+  for (int a = 0; a < 3; ++a) {
+    if (r.translation[a] != 0) return kNoDirectInstance;
+    for (int b = 0; b < 3; ++b)
+      if (r.linear[3 * a + b] != (a == b ? 1.0f : 0.0f) || r.inverse_linear[3 * a + b] != (a == b ? 1.0f : 0.0f))
+        return kNoDirectInstance;
+  }
+  return 0;
+}
+
 // One mesh's BVH in its local space.
 template <int W, int B>
 struct MeshBvhView {
@@ -25,6 +41,9 @@ struct SceneView {
   const uint32_t* top_instances = nullptr;     // instance indices referenced by top-level leaves
   const fmt::InstanceRecord* instances = nullptr;
   const MeshBvhView<W, B>* meshes = nullptr;   // indexed by InstanceRecord::mesh
+  // The scene's only instance when its record is the identity (direct_instance()): rays walk its mesh
+  // in world space and skip the instance level (issue 11). The answers are the same bit for bit.
+  uint32_t direct = kNoDirectInstance;
 };
 
 }  // namespace rtp
