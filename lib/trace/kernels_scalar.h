@@ -8,6 +8,12 @@ namespace rtp::RTP_ISA_NS {
 
 struct ScalarKernels {
   template <int W>
+  using NodeRay = detail::BoxRay;  // the reference reads the ray as it is
+  template <int W>
+  static const detail::BoxRay& node_ray(const detail::BoxRay& r) {
+    return r;
+  }
+  template <int W>
   static uint32_t node(const fmt::WideNode<W>& n, const detail::BoxRay& r, float tfar, float* dist) {
     return box_test_scalar<W>(n, r, tfar, dist);
   }

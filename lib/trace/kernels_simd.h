@@ -15,7 +15,13 @@ struct SimdKernels {
   using Vec = std::conditional_t<N == 4, V4, std::conditional_t<N == 8, V8, V16>>;
 
   template <int W>
-  static uint32_t node(const fmt::WideNode<W>& n, const detail::BoxRay& r, float tfar, float* dist) {
+  using NodeRay = SimdNodeRay<Vec<W>>;
+  template <int W>
+  static NodeRay<W> node_ray(const detail::BoxRay& r) {
+    return simd_node_ray<Vec<W>, W>(r);
+  }
+  template <int W>
+  static uint32_t node(const fmt::WideNode<W>& n, const NodeRay<W>& r, float tfar, float* dist) {
     return box_test_simd<Vec<W>, W>(n, r, tfar, dist);
   }
   template <int W>

@@ -155,7 +155,7 @@ inline void node_test_impl(const fmt::WideNode<W>& node, const fmt::Ray& ray, No
   if (!ray_is_valid(ray)) return;
   detail::BoxRay r;
   setup_box_ray(ray.org, ray.dir, ray.tnear, &r);
-  out->mask = K::template node<W>(node, r, ray.tfar, out->dist);
+  out->mask = K::template node<W>(node, K::template node_ray<W>(r), ray.tfar, out->dist);
 }
 
 }  // namespace rtp::RTP_ISA_NS

@@ -20,6 +20,7 @@ inline Walk walk_active_list(const fmt::WideNode<W>* nodes, uint32_t root, const
   float dists[kCapacity];
   int n = 0;
   alignas(64) float dist[W];
+  const typename K::template NodeRay<W> node_ray = K::template node_ray<W>(ray);
   uint32_t cur = root;
   for (;;) {
     if (fmt::ChildRef::is_leaf(cur)) {
@@ -40,7 +41,7 @@ inline Walk walk_active_list(const fmt::WideNode<W>* nodes, uint32_t root, const
       }
     } else if (!fmt::ChildRef::is_empty(cur)) {
       const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
-      const uint32_t mask = K::template node<W>(node, ray, tfar, dist);
+      const uint32_t mask = K::template node<W>(node, node_ray, tfar, dist);
       prefetch_children(nodes, node, mask, prefetch_leaf);
       if (n + bit_count(mask) > kCapacity) return Walk::kOverflow;
       for (uint32_t m = mask; m; m &= m - 1) {

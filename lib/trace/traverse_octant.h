@@ -22,6 +22,7 @@ inline Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, cons
   Entry stack[kCapacity];
   int sp = 0;
   alignas(64) float dist[W];
+  const typename K::template NodeRay<W> node_ray = K::template node_ray<W>(ray);
   uint32_t cur = root;
   for (;;) {
     if (fmt::ChildRef::is_leaf(cur)) {
@@ -29,7 +30,7 @@ inline Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, cons
       if (w != Walk::kDone) return w;
     } else if (!fmt::ChildRef::is_empty(cur)) {
       const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
-      const uint32_t mask = K::template node<W>(node, ray, tfar, dist);
+      const uint32_t mask = K::template node<W>(node, node_ray, tfar, dist);
       prefetch_children(nodes, node, mask, prefetch_leaf);
       const uint8_t* order = node.order[ray.octant];
       if (mask && !(mask & (mask - 1))) {  // one child hit: no order needed
