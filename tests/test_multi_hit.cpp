@@ -29,6 +29,7 @@ namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CM
 constexpr uint32_t kNs[] = {1, 2, 8, 64};
 constexpr int kLayers = 70;  // more than 64 surfaces along a vertical ray: N = 64 must cut the list
 
+// The order written out once more here, independently of hit_order_less and the kernels' copy.
 bool before(const fmt::Hit& a, const fmt::Hit& b) {
   return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
 }

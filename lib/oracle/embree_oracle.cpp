@@ -1,10 +1,10 @@
 #include "core/math.h"
 #include "oracle/embree_oracle.h"
 
-#include <algorithm>
-#include <array>
 #include <embree3/rtcore.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -18,6 +18,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "trace/trace.h"
 
 namespace rtp {
 namespace {
@@ -365,9 +366,7 @@ OracleStats EmbreeOracle::multi_hit(const fmt::Ray* rays, size_t n, uint32_t max
       rh.hit.geomID = rh.hit.primID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       all.clear();
       rtcIntersect1(top, &g.ctx, &rh);
-      std::sort(all.begin(), all.end(), [](const fmt::Hit& a, const fmt::Hit& b) {
-        return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
-      });
+      std::sort(all.begin(), all.end(), hit_order_less);
       all.erase(std::unique(all.begin(), all.end(),
                             [](const fmt::Hit& a, const fmt::Hit& b) { return a.instance == b.instance && a.prim == b.prim; }),
                 all.end());

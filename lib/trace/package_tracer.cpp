@@ -174,9 +174,6 @@ class Tracer final : public PackageTracer {
     if (max_hits < 1 || max_hits > kMaxMultiHit)
       throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
                                         std::to_string(kMaxMultiHit) + "]");
-    const auto before = [](const fmt::Hit& a, const fmt::Hit& b) {  // TESTING.md item 7 order
-      return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
-    };
     std::fill(hits, hits + n * max_hits, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
     std::fill(counts, counts + n, 0u);
     std::vector<fmt::Hit> point_hits(max_hits), merged;
@@ -192,7 +189,7 @@ class Tracer final : public PackageTracer {
         merged.push_back(point_hits[k]);
         merged.back().instance = pt.global_ids[point_hits[k].instance];
       }
-      std::sort(merged.begin(), merged.end(), before);
+      std::sort(merged.begin(), merged.end(), hit_order_less);
       counts[i] = uint32_t(std::min<size_t>(max_hits, merged.size()));
       std::copy(merged.begin(), merged.begin() + counts[i], out);
       if (counts[i] == max_hits) ray.tfar = out[max_hits - 1].t;  // later points must beat the N-th hit
