@@ -19,6 +19,7 @@
 #include "package/convert.h"
 #include "reader/container.h"
 #include "tool_run.h"
+#include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 #include "trace/ray_file.h"
 #include "trace/trace.h"
@@ -201,7 +202,8 @@ TEST(MultiHit, RefusesNOutsideOneTo64) {
 }
 
 // Through a package of many batching points (each instance in one of them): the same N closest as in
-// core over the converted scene, and rtpack-trace --multi-hit writes them.
+// core over the converted scene, out of core at 100 % and 10 % budgets as in core, and rtpack-trace
+// --multi-hit writes them (with --memory-budget too).
 TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   const auto dir = temp_dir("multi_hit");
   ConvertSettings cs;
@@ -232,6 +234,17 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
       expect_well_formed(rays, p, N, "package N=" + std::to_string(N));
       ASSERT_EQ(p.counts, c.counts) << "N=" << N;
       ASSERT_EQ(std::memcmp(p.hits.data(), c.hits.data(), n * N * sizeof(fmt::Hit)), 0) << "N=" << N;
+      for (const char* budget : {"100%", "10%"}) {
+        const uint64_t bytes = std::max(minimum_budget(reader), parse_memory_budget(budget, on_demand_bytes(reader)));
+        Multi b{std::vector<fmt::Hit>(n * N), std::vector<uint32_t>(n)};
+        const OutOfCoreStats st = open_out_of_core(reader, bytes)->multi(rays.data(), n, N, b.hits.data(), b.counts.data(), o);
+        ASSERT_EQ(b.counts, p.counts) << "out of core at " << budget << ", N=" << N;
+        ASSERT_EQ(std::memcmp(b.hits.data(), p.hits.data(), n * N * sizeof(fmt::Hit)), 0) << budget << ", N=" << N;
+        EXPECT_LE(st.cache.peak_resident_bytes, bytes);
+        if (std::string(budget) == "10%") {
+          EXPECT_GT(st.rounds, 1u);
+        }
+      }
       if (N == 8)
         for (uint32_t k : p.counts) many += k >= 3;
     }
@@ -263,6 +276,12 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   trace_multi<8, 8>(bvh.view(), rays.data(), n, 8, expect.hits.data(), expect.counts.data(), TraceOptions{detect_isa()});
   EXPECT_EQ(std::memcmp(mh.data(), expect.hits.data(), mh.size() * sizeof(fmt::Hit)), 0);
   for (size_t i = 0; i < n; ++i) ASSERT_EQ(std::memcmp(&mh[i * 8], &ch[i], sizeof(fmt::Hit)), 0) << "ray " << i;
+  const std::string ooc_path = (dir / "o.bin").string();
+  const ToolResult o = run_tool("rtpack-trace", {cs.output, "--rays", rays_path, "--hits", ooc_path, "--multi-hit", "8",
+                                                 "--memory-budget", std::to_string(minimum_budget(reader))}, dir);
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(read(ooc_path).size(), mh.size());
+  EXPECT_EQ(std::memcmp(read(ooc_path).data(), mh.data(), mh.size() * sizeof(fmt::Hit)), 0) << "out of core";
   uint64_t total = 0;
   for (uint32_t k : expect.counts) total += k;
   const auto j = nlohmann::json::parse(m.out);
@@ -270,7 +289,7 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   EXPECT_EQ(j["multi_hit"]["hits"].get<uint64_t>(), total);
   for (const std::vector<std::string>& bad :
        {std::vector<std::string>{"--multi-hit", "0"}, {"--multi-hit", "65"}, {"--multi-hit", "4", "--any"},
-        {"--multi-hit", "4", "--memory-budget", "50%"}}) {
+        {"--multi-hit", "4", "--shading", (dir / "s.bin").string()}}) {
     std::vector<std::string> args = {cs.output, "--rays", rays_path, "--hits", (dir / "x.bin").string()};
     args.insert(args.end(), bad.begin(), bad.end());
     const ToolResult r = run_tool("rtpack-trace", args, dir);

@@ -80,7 +80,7 @@ int main(int argc, char** argv) {
   uint32_t multi = 0;
   app.add_option("--multi-hit", multi,
                  "K: write the K closest hits of each ray (K hit records per ray, nearest first, then misses; SPEC §5), "
-                 "K in 1..64, in core")
+                 "K in 1..64")
       ->check(CLI::Range(1u, rtp::kMaxMultiHit));
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
@@ -112,8 +112,8 @@ int main(int argc, char** argv) {
   if (render && (!rays_path.empty() || !make_rays.empty()))
     return usage("--image traces the camera's own rays: leave out --rays and --make-camera-rays");
   if (render && any) return usage("--image shows closest hits: it cannot be used with --any");
-  if (multi && (any || render || app.count("--shading") || !budget_text.empty()))
-    return usage("--multi-hit writes the K closest hits in core: leave out --any, --image, --shading and --memory-budget");
+  if (multi && (any || render || app.count("--shading")))
+    return usage("--multi-hit writes the K closest hits of a ray file: leave out --any, --image and --shading");
   if (!render && (rays_path.empty() || hits_path.empty()))
     return usage("--rays and --hits are required (or --image PNG to render the camera's rays)");
   int img_w = 0, img_h = 0;
@@ -183,7 +183,9 @@ int main(int argc, char** argv) {
     rtp::OutOfCoreStats os;
     const auto t0 = std::chrono::steady_clock::now();
     if (ooc) {
-      os = any ? ooc->any(rays.data(), occ.data(), rays.size(), opt) : ooc->closest(rays.data(), hits.data(), rays.size(), opt);
+      os = any     ? ooc->any(rays.data(), occ.data(), rays.size(), opt)
+           : multi ? ooc->multi(rays.data(), rays.size(), multi, hits.data(), counts.data(), opt)
+                   : ooc->closest(rays.data(), hits.data(), rays.size(), opt);
       invalid = os.invalid_rays;
       visits = os.point_visits;
       culled = os.culled_visits;

@@ -178,6 +178,26 @@ class Batched final : public OutOfCoreTracer {
     }, [&](size_t i) { return rays[i].tfar; });
   }
 
+  OutOfCoreStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
+                       const PackageTraceOptions& o) override {
+    check_multi_hit_count(max_hits);
+    std::fill(hits, hits + n * max_hits, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
+    std::fill(counts, counts + n, 0u);
+    return run(rays, n, o, [&](const SceneView<W, B>& view, const uint32_t* global_ids, const uint32_t* ids,
+                               const fmt::Ray* local, size_t k, std::vector<uint8_t>& done) {
+      thread_local std::vector<fmt::Hit> point_hits, scratch;
+      uint32_t c[kBlock];
+      point_hits.resize(k * max_hits);
+      trace_multi<W, B>(view, local, k, max_hits, point_hits.data(), c, o);
+      for (size_t j = 0; j < k; ++j) {  // a ray waits at one point at a time: its list is this task's
+        const uint32_t i = ids[j];
+        counts[i] = merge_point_hits(hits + size_t(i) * max_hits, counts[i], max_hits, point_hits.data() + j * max_hits,
+                                     c[j], global_ids, scratch);
+        done[j] = 0;
+      }
+    }, [&](size_t i) { return counts[i] == max_hits ? hits[i * max_hits + max_hits - 1].t : rays[i].tfar; });
+  }
+
  private:
   // One ray's walk to its next unculled batching point (kNone: finished). `tfar` is its current one.
   uint32_t advance(const fmt::Ray& ray, float tfar, TopPosition& pos, float& tstart, bool cull, PackageTraceStats& st) const {

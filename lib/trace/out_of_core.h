@@ -39,6 +39,10 @@ class OutOfCoreTracer {
   // instance). Parallel inside (TBB). The cache persists across calls.
   virtual OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) = 0;
   virtual OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) = 0;
+  // The N closest hits, as PackageTracer::multi (the same records): a ray's N-th hit so far is its
+  // tfar when it resumes its walk, so later batching points beyond it are never queued.
+  virtual OutOfCoreStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
+                               const PackageTraceOptions& o) = 0;
   virtual bool has_dags() const = 0;
   // Reading the next round's likely chunks on a background I/O thread while a round traces, a quarter of
   // the budget kept for them (default off: every chunk is read, in parallel, when its round starts; on

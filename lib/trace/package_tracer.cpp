@@ -171,27 +171,15 @@ class Tracer final : public PackageTracer {
 
   PackageTraceStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
                           const PackageTraceOptions& o) const override {
-    if (max_hits < 1 || max_hits > kMaxMultiHit)
-      throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
-                                        std::to_string(kMaxMultiHit) + "]");
+    check_multi_hit_count(max_hits);
     std::fill(hits, hits + n * max_hits, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
     std::fill(counts, counts + n, 0u);
-    std::vector<fmt::Hit> point_hits(max_hits), merged;
-    merged.reserve(2 * size_t(max_hits));
+    std::vector<fmt::Hit> point_hits(max_hits), scratch;
     return each_ray(rays, n, o, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray& ray) {
       uint32_t c = 0;
       trace_multi<W, B>(pt.view, &local, 1, max_hits, point_hits.data(), &c, o);
-      if (c == 0) return false;
-      // Merge the point's N closest (each triangle is in one point) with the ray's so far.
       fmt::Hit* out = hits + i * max_hits;
-      merged.assign(out, out + counts[i]);
-      for (uint32_t k = 0; k < c; ++k) {
-        merged.push_back(point_hits[k]);
-        merged.back().instance = pt.global_ids[point_hits[k].instance];
-      }
-      std::sort(merged.begin(), merged.end(), hit_order_less);
-      counts[i] = uint32_t(std::min<size_t>(max_hits, merged.size()));
-      std::copy(merged.begin(), merged.begin() + counts[i], out);
+      counts[i] = merge_point_hits(out, counts[i], max_hits, point_hits.data(), c, pt.global_ids, scratch);
       if (counts[i] == max_hits) ray.tfar = out[max_hits - 1].t;  // later points must beat the N-th hit
       return false;
     });
@@ -297,6 +285,26 @@ class Tracer final : public PackageTracer {
 };
 
 }  // namespace
+
+void check_multi_hit_count(uint32_t max_hits) {
+  if (max_hits < 1 || max_hits > kMaxMultiHit)
+    throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
+                                      std::to_string(kMaxMultiHit) + "]");
+}
+
+uint32_t merge_point_hits(fmt::Hit* list, uint32_t count, uint32_t max_hits, const fmt::Hit* add, uint32_t n_add,
+                          const uint32_t* global_ids, std::vector<fmt::Hit>& scratch) {
+  if (n_add == 0) return count;
+  scratch.assign(list, list + count);
+  for (uint32_t k = 0; k < n_add; ++k) {
+    scratch.push_back(add[k]);
+    scratch.back().instance = global_ids[add[k].instance];
+  }
+  std::sort(scratch.begin(), scratch.end(), hit_order_less);
+  const uint32_t c = uint32_t(std::min<size_t>(max_hits, scratch.size()));
+  std::copy(scratch.begin(), scratch.begin() + c, list);
+  return c;
+}
 
 std::unique_ptr<PackageTracer> load_package_in_core(const PackageReader& r) {
   const uint32_t w = r.header().bvh_width, b = r.header().leaf_width;

@@ -56,6 +56,13 @@ class PackageTracer {
   virtual voxel::DagHit test_point_dag(size_t p, const fmt::Ray& ray) const = 0;
 };
 
+// Merges one batching point's sorted hits (`add`, local instance ids mapped through `global_ids`) into a
+// ray's list of at most max_hits (hit_order_less, each triangle being in one point); returns the new
+// count. `scratch` is reused. check_multi_hit_count throws Error(kUsage) for N outside [1, kMaxMultiHit].
+uint32_t merge_point_hits(fmt::Hit* list, uint32_t count, uint32_t max_hits, const fmt::Hit* add, uint32_t n_add,
+                          const uint32_t* global_ids, std::vector<fmt::Hit>& scratch);
+void check_multi_hit_count(uint32_t max_hits);
+
 // Reads and checks every chunk of the package (throws rtp::Error naming a bad chunk).
 std::unique_ptr<PackageTracer> load_package_in_core(const PackageReader& reader);
 
