@@ -25,10 +25,11 @@ plt.rcParams.update({"svg.hashsalt": "rtpack", "svg.fonttype": "none", "font.fam
 DASH, DOT = "--", ":"  # the old charts' stroke-dasharray 6,4 and 2,3
 
 
-def figure(w=8.0, h=4.5, right=0.72, left=0.12, ncols=1):
+def figure(w=8.0, h=4.5, right=0.72, left=0.12, ncols=1, nrows=1):
     """A figure with room on the right for the legend and on top for a title and a subtitle."""
-    fig, ax = plt.subplots(1, ncols, figsize=(w, h))
-    fig.subplots_adjust(left=left, right=right, top=0.84, bottom=0.14, wspace=0.35)
+    fig, ax = plt.subplots(nrows, ncols, figsize=(w, h))
+    fig.subplots_adjust(left=left, right=right, top=0.84 if nrows == 1 else 0.9, bottom=0.14 if nrows == 1 else 0.08,
+                        wspace=0.35, hspace=0.35)
     return fig, ax
 
 

@@ -257,8 +257,8 @@ TYPED_TEST(TraceScene, DeepTreesWithinTheLimitAreExactBeyondItSafe) {
     EXPECT_EQ(r.occluded[1], 1);
   }
   const TestScene<W, B> s = chain_scene<W, B>(300);
-  for (auto [isa, order] : all_paths()) {
-    const PathResult r = run_path<W, B>(s.view(), rays, isa, order);
+  for (const TraceOptions& opt : all_paths()) {
+    const PathResult r = run_path<W, B>(s.view(), rays, opt);
     uint64_t misses = 0;
     for (size_t i = 0; i < rays.size(); ++i) {
       // Either the exact answer, or a miss counted as an overflow: never a crash or a wrong hit.
@@ -267,7 +267,7 @@ TYPED_TEST(TraceScene, DeepTreesWithinTheLimitAreExactBeyondItSafe) {
       else
         ++misses;
     }
-    EXPECT_EQ(r.closest_stats.overflow_rays, misses) << isa_name(isa) << "/" << order_name(order);
+    EXPECT_EQ(r.closest_stats.overflow_rays, misses) << trace_test::path_name(opt);
   }
 }
 

@@ -290,6 +290,17 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   return 0;
 }
 
+nlohmann::json mode_run_json(const std::string& scene, const char* isa, int threads, int reps, nlohmann::json records) {
+  nlohmann::json j = rtp::tools::json_stamp("rtpack-bench");
+  j["scene"] = scene;
+  j["cpu"] = cpu_model();
+  j["isa"] = isa;
+  j["threads"] = threads;
+  j["reps"] = reps;
+  j["records"] = std::move(records);
+  return j;
+}
+
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   std::string line;

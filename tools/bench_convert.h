@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "package/write_package.h"  // kDefaultZstdLevel
 
 namespace rtp::bench {
@@ -27,5 +29,9 @@ int run_convert_bench(const ConvertBenchConfig& cfg);
 
 // The CPU's model name from /proc/cpuinfo ("unknown" when absent), for bench records.
 std::string cpu_model();
+
+// The JSON document of one rtpack-bench mode run (--multi-hit, --packets): the tool's stamp, the scene,
+// this CPU, the ISA name, threads (0 = all), reps and the mode's records.
+nlohmann::json mode_run_json(const std::string& scene, const char* isa, int threads, int reps, nlohmann::json records);
 
 }  // namespace rtp::bench

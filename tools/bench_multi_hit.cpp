@@ -118,16 +118,7 @@ int run_multi_hit_bench(MultiHitBenchConfig cfg) {
                          {"same_as_collect_all", same}});
     }
   }
-  if (cfg.json) {
-    nlohmann::json j = rtp::tools::json_stamp("rtpack-bench");
-    j["scene"] = cfg.scene_path;
-    j["cpu"] = cpu_model();
-    j["isa"] = isa_name(cfg.isa);
-    j["threads"] = cfg.threads;
-    j["reps"] = cfg.reps;
-    j["records"] = records;
-    std::cout << j.dump(2) << "\n";
-  }
+  if (cfg.json) std::cout << mode_run_json(cfg.scene_path, isa_name(cfg.isa), cfg.threads, cfg.reps, records).dump(2) << "\n";
   return differ ? int(ExitCode::kInternal) : 0;
 }
 

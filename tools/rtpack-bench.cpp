@@ -42,6 +42,7 @@
 #include "bench_convert.h"
 #include "bench_dag.h"
 #include "bench_multi_hit.h"
+#include "bench_packets.h"
 #include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
@@ -486,6 +487,10 @@ int main(int argc, char** argv) {
   bench::MultiHitBenchConfig multi;
   bench::add_multi_hit_options(app, multi)
       ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt);
+  bench::PacketBenchConfig packets;
+  bench::add_packet_options(app, packets)
+      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt)
+      ->excludes("--multi-hit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -556,6 +561,15 @@ int main(int argc, char** argv) {
       if (app.count("--rays")) multi.rays = cfg.rays;
       if (app.count("--kinds")) multi.kinds = cfg.kinds;
       return bench::run_multi_hit_bench(multi);
+    }
+    if (app.count("--packets")) {
+      packets.scene_path = cfg.scene_path;
+      packets.allow_paths = cfg.allow_paths;
+      packets.threads = threads == "all" ? 0 : cfg.threads[0];
+      packets.reps = cfg.reps, packets.json = cfg.json, packets.seed = cfg.seed, packets.isa = cfg.isa;
+      if (app.count("--rays")) packets.rays = cfg.rays;
+      if (app.count("--kinds")) packets.kinds = cfg.kinds;
+      return bench::run_packet_bench(packets);
     }
     if (app.count("--dag")) {
       dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);

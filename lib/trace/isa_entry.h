@@ -24,6 +24,19 @@
   void node_test(const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out);                      \
   }
 
+// Coherent packets of P in {4, 8, 16} consecutive rays (trace_packet.h): SIMD ISAs only.
+#define RTP_DECLARE_PACKET_ENTRY_POINTS(ns)                                                                  \
+  namespace rtp::ns {                                                                                        \
+  template <int W, int B>                                                                                    \
+  TraceStats closest_packets(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,  \
+                             uint32_t packet);                                                               \
+  template <int W, int B>                                                                                    \
+  TraceStats any_packets(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,   \
+                         uint32_t packet);                                                                   \
+  }
+
 RTP_DECLARE_ISA_ENTRY_POINTS(scalar)
 RTP_DECLARE_ISA_ENTRY_POINTS(avx2)
 RTP_DECLARE_ISA_ENTRY_POINTS(avx512)
+RTP_DECLARE_PACKET_ENTRY_POINTS(avx2)
+RTP_DECLARE_PACKET_ENTRY_POINTS(avx512)

@@ -65,6 +65,16 @@ inline void setup_tri_ray(const float org[3], const float dir[3], float tnear, d
   out->tnear = tnear;
 }
 
+// A record that moves no ray: T = 0 and L^-1 = I exactly. transform_ray would return the world ray bit
+// for bit (x - 0 and 1·x + 0·y + 0·z are exact in double), so walks skip it (glTF nodes without a
+// transform are most instances of many scenes).
+inline bool moves_no_ray(const fmt::InstanceRecord& inst) {
+  const float* m = inst.inverse_linear;
+  return inst.translation[0] == 0 && inst.translation[1] == 0 && inst.translation[2] == 0 && m[0] == 1.0f &&
+         m[4] == 1.0f && m[8] == 1.0f && m[1] == 0.0f && m[2] == 0.0f && m[3] == 0.0f && m[5] == 0.0f && m[6] == 0.0f &&
+         m[7] == 0.0f;
+}
+
 // SPEC §2.4: org' = L^-1 (org - T), dir' = L^-1 dir in double, T the double translation kept apart
 // (issue 11: a float 3x4 inverse put a small instance at 3e6 up to 0.25 units off). org - T is exact
 // to 2^-53 of the larger magnitude and products of floats are exact in double, so the only rounding

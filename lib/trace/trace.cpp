@@ -52,9 +52,22 @@ const char* order_name(TraversalOrder order) {
   return "unknown";
 }
 
+static void check_packet_size(uint32_t packet) {
+  if (!packet_size_ok(packet))
+    throw Error(ExitCode::kUsage, "packet size " + std::to_string(packet) + " is not 0, 4, 8 or 16");
+}
+
 template <int W, int B>
 TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
                          const TraceOptions& options) {
+  if (options.packet) {
+    check_packet_size(options.packet);
+    switch (usable(options.isa)) {
+      case Isa::kAvx512: return avx512::closest_packets<W, B>(scene, rays, hits, n, options.packet);
+      case Isa::kAvx2: return avx2::closest_packets<W, B>(scene, rays, hits, n, options.packet);
+      case Isa::kScalar: break;
+    }
+  }
   switch (usable(options.isa)) {
     case Isa::kAvx512: return avx512::closest<W, B>(scene, rays, hits, n, options.order);
     case Isa::kAvx2: return avx2::closest<W, B>(scene, rays, hits, n, options.order);
@@ -66,6 +79,14 @@ TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt
 template <int W, int B>
 TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t* occluded, size_t n,
                      const TraceOptions& options) {
+  if (options.packet) {
+    check_packet_size(options.packet);
+    switch (usable(options.isa)) {
+      case Isa::kAvx512: return avx512::any_packets<W, B>(scene, rays, occluded, n, options.packet);
+      case Isa::kAvx2: return avx2::any_packets<W, B>(scene, rays, occluded, n, options.packet);
+      case Isa::kScalar: break;
+    }
+  }
   switch (usable(options.isa)) {
     case Isa::kAvx512: return avx512::any<W, B>(scene, rays, occluded, n, options.order);
     case Isa::kAvx2: return avx2::any<W, B>(scene, rays, occluded, n, options.order);

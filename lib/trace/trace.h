@@ -20,12 +20,27 @@ const char* order_name(TraversalOrder order);
 struct TraceOptions {
   Isa isa = Isa::kScalar;
   TraversalOrder order = TraversalOrder::kOctantStack;
+  // Wu 2016 coherent packets for closest and any hit: 0 traces single rays; 4, 8 or 16 traces each run
+  // of that many consecutive rays (e.g. a 2x2, 4x2 or 4x4 pixel tile) as a packet (packet.h), in octant
+  // order whatever `order` says. Same answers bit for bit. The scalar ISA traces single rays.
+  uint32_t packet = 0;
 };
+inline bool packet_size_ok(uint32_t p) { return p == 0 || p == 4 || p == 8 || p == 16; }
 
 struct TraceStats {
   uint64_t rays = 0;
   uint64_t invalid_rays = 0;  // NaN/Inf, tnear > tfar, tnear = inf: returned as misses
   uint64_t overflow_rays = 0;  // tree deeper than the fixed traversal stacks allow (malformed BVH): misses
+  // With TraceOptions::packet: packets traced and their rays (the others went alone: invalid, another
+  // octant than the packet's first ray, too few), node tests by packets and the active rays summed over
+  // them (SIMD utilization = packet_active_lanes / (packet_node_tests · packet size), Wu 2016 §4.2.1),
+  // and subtrees rays finished alone after their packet thinned out.
+  uint64_t packets = 0, packet_rays = 0, packet_node_tests = 0, packet_active_lanes = 0, packet_single_walks = 0;
+  void add(const TraceStats& o) {
+    rays += o.rays, invalid_rays += o.invalid_rays, overflow_rays += o.overflow_rays;
+    packets += o.packets, packet_rays += o.packet_rays, packet_node_tests += o.packet_node_tests;
+    packet_active_lanes += o.packet_active_lanes, packet_single_walks += o.packet_single_walks;
+  }
 };
 
 // Closest hit for rays[0..n): hits[i].t = +inf on a miss. Thread-safe (no shared mutable state),

@@ -8,9 +8,11 @@
 #define RTP_ISA_NS avx2
 #include "trace/kernels_simd.h"
 #include "trace/multi_hit.h"
+#include "trace/trace_packet.h"
 
 namespace rtp::avx2 {
 using Avx2Kernels = SimdKernels<F4, F8, F8>;
 }  // namespace rtp::avx2
 
 RTP_DEFINE_ISA_ENTRY_POINTS(Avx2Kernels)
+RTP_DEFINE_PACKET_ENTRY_POINTS(Avx2Kernels)

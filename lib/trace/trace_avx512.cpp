@@ -9,9 +9,11 @@
 #include "trace/kernels_simd.h"
 #include "trace/simd_avx512.h"
 #include "trace/multi_hit.h"
+#include "trace/trace_packet.h"
 
 namespace rtp::avx512 {
 using Avx512Kernels = SimdKernels<F4, F8, F16>;
 }  // namespace rtp::avx512
 
 RTP_DEFINE_ISA_ENTRY_POINTS(Avx512Kernels)
+RTP_DEFINE_PACKET_ENTRY_POINTS(Avx512Kernels)

@@ -62,51 +62,70 @@ struct AnySink {
   }
 };
 
-// Molenaar 2019 §4.1 two-level BVH: walk the instance BVH with the world ray; at an instance leaf,
-// move the ray into the instance's local space (transform_ray, direction not renormalized, so t is
-// shared by both levels) and walk that mesh's BVH with the same tfar. A view whose only instance is
-// the identity (SceneView::direct) walks that mesh with the world ray directly.
+// One ray through one instance's mesh BVH from node `root` (the mesh's root, or a subtree a packet
+// left the ray in, packet.h), with the ray in the mesh's local space: org/dir and their box form.
 template <class K, TraversalOrder O, int W, int B, class Sink>
-inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink) {
-  auto walk_mesh = [&](uint32_t id, const float org[3], const float dir[3], const detail::BoxRay& box) -> Walk {
-    const MeshBvhView<W, B>& mesh = s.meshes[s.instances[id].mesh];
-    detail::TriRay tri;
-    bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
-    auto block_leaf = [&](uint32_t leaf_ref) -> Walk {
-      if (!tri_ready) setup_tri_ray(org, dir, ray.tnear, &tri), tri_ready = true;
-      const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
-      for (uint32_t b = b0; b < b0 + nb; ++b) {
-        const Walk w = sink.template block<K, B>(mesh.blocks[b], tri, id);
-        if (w != Walk::kDone) return w;
-      }
-      return Walk::kDone;
-    };
-    auto prefetch_block = [&](uint32_t leaf_ref) {
-      const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
-      for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
-    };
-    return walk<O, K, W>(mesh.nodes, mesh.root, box, sink.tfar(), block_leaf, prefetch_block);
-  };
-  detail::BoxRay world;
-  setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
-  if (s.direct != kNoDirectInstance) return walk_mesh(s.direct, ray.org, ray.dir, world);
-  auto instance_leaf = [&](uint32_t ref) -> Walk {
-    const uint32_t first = fmt::ChildRef::first_block(ref), count = fmt::ChildRef::block_count(ref);
-    for (uint32_t k = first; k < first + count; ++k) {
-      const uint32_t id = s.top_instances[k];
-      float org[3], dir[3];
-      if (!transform_ray(s.instances[id], ray.org, ray.dir, org, dir)) continue;
-      detail::BoxRay box;
-      setup_box_ray(org, dir, ray.tnear, &box);
-      if (k + 1 < first + count) {  // the next instance's record, while this one is walked
-        const char* next = reinterpret_cast<const char*>(s.instances + s.top_instances[k + 1]);
-        __builtin_prefetch(next), __builtin_prefetch(next + 64);
-      }
-      const Walk w = walk_mesh(id, org, dir, box);
+inline Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, const float org[3], const float dir[3],
+                          float tnear, const detail::BoxRay& box, Sink& sink) {
+  const MeshBvhView<W, B>& mesh = s.meshes[s.instances[id].mesh];
+  detail::TriRay tri;
+  bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
+  auto block_leaf = [&](uint32_t leaf_ref) -> Walk {
+    if (!tri_ready) setup_tri_ray(org, dir, tnear, &tri), tri_ready = true;
+    const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
+    for (uint32_t b = b0; b < b0 + nb; ++b) {
+      const Walk w = sink.template block<K, B>(mesh.blocks[b], tri, id);
       if (w != Walk::kDone) return w;
     }
     return Walk::kDone;
   };
+  auto prefetch_block = [&](uint32_t leaf_ref) {
+    const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
+    for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
+  };
+  return walk<O, K, W>(mesh.nodes, root, box, sink.tfar(), block_leaf, prefetch_block);
+}
+
+// One instance-level leaf for one world ray: each instance's record moves the ray into its local space
+// (transform_ray, direction not renormalized, so t is shared by both levels) and its mesh is walked.
+// `world` is the world ray's box form: an instance that moves no ray (moves_no_ray) is walked with it.
+template <class K, TraversalOrder O, int W, int B, class Sink>
+inline Walk instance_leaf_one(const SceneView<W, B>& s, uint32_t ref, const fmt::Ray& ray, const detail::BoxRay& world,
+                              Sink& sink) {
+  const uint32_t first = fmt::ChildRef::first_block(ref), count = fmt::ChildRef::block_count(ref);
+  for (uint32_t k = first; k < first + count; ++k) {
+    const uint32_t id = s.top_instances[k];
+    if (k + 1 < first + count) {  // the next instance's record, while this one is walked
+      const char* next = reinterpret_cast<const char*>(s.instances + s.top_instances[k + 1]);
+      __builtin_prefetch(next), __builtin_prefetch(next + 64);
+    }
+    const uint32_t mesh_root = s.meshes[s.instances[id].mesh].root;
+    Walk w;
+    if (moves_no_ray(s.instances[id])) {
+      w = walk_mesh_one<K, O>(s, id, mesh_root, ray.org, ray.dir, ray.tnear, world, sink);
+    } else {
+      float org[3], dir[3];
+      if (!transform_ray(s.instances[id], ray.org, ray.dir, org, dir)) continue;
+      detail::BoxRay box;
+      setup_box_ray(org, dir, ray.tnear, &box);
+      w = walk_mesh_one<K, O>(s, id, mesh_root, org, dir, ray.tnear, box, sink);
+    }
+    if (w != Walk::kDone) return w;
+  }
+  return Walk::kDone;
+}
+
+// Molenaar 2019 §4.1 two-level BVH: walk the instance BVH with the world ray; at an instance leaf,
+// move the ray into the instance's local space and walk that mesh's BVH with the same tfar. A view
+// whose only instance is the identity (SceneView::direct) walks that mesh with the world ray directly.
+template <class K, TraversalOrder O, int W, int B, class Sink>
+inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink) {
+  detail::BoxRay world;
+  setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
+  if (s.direct != kNoDirectInstance)
+    return walk_mesh_one<K, O>(s, s.direct, s.meshes[s.instances[s.direct].mesh].root, ray.org, ray.dir, ray.tnear,
+                               world, sink);
+  auto instance_leaf = [&](uint32_t ref) -> Walk { return instance_leaf_one<K, O>(s, ref, ray, world, sink); };
   return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
 }
 

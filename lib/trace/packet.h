@@ -1,0 +1,197 @@
+#pragma once
+// Coherent ray packets over one W-wide BVH level (Wu 2016 "Ray Packet Tracing with Acceleration using
+// AVX"): P rays of one octant test a node together, first as one interval frustum against the node's W
+// children, then child by child with one lane per ray; a packet thinned to a few rays finishes the
+// subtree ray by ray with the single-ray walk. SIMD only (kernels_simd.h): P rays in K::Vec<P>.
+#include <cfloat>
+#include <cmath>
+
+#include "formats/bvh_layout.h"
+#include "trace/kernel_common.h"
+
+namespace rtp::RTP_ISA_NS {
+
+// Wu 2016 §2.1.3 (after Boulos 2007's adaptive packets): a packet with fewer active rays than this
+// leaves them to finish the current subtree alone, where the single-ray walk's W-wide node test keeps
+// its SIMD lanes busy. Measured with rtpack-bench --packets on the samples (design.md).
+inline constexpr int kPacketMinActive = 3;
+
+// What packets did, for TraceStats: SIMD utilization = active_lanes / (node_tests · P) (Wu 2016 §4.2.1).
+struct PacketCounters {
+  uint64_t node_tests = 0, active_lanes = 0, single_walks = 0;
+};
+
+// The packet's rays in one level's space as the per-child lane test reads them (SoA, one lane per
+// ray), and the interval bounds of the whole packet that the frustum test reads.
+template <int P>
+struct PacketRays {
+  alignas(64) float ox[P], oy[P], oz[P], rx[P], ry[P], rz[P], tnear[P];
+  float o_near[3], o_far[3];  // per axis: the origin bound giving the lowest near / highest far distance
+  float rmin[3], rmax[3];     // per axis: reciprocal direction bounds (one sign: one octant)
+  float tnear_min;
+  uint8_t octant;
+};
+
+// Fills `out` from the rays of `lanes` (box forms already set up). False when they do not share an
+// octant or a reciprocal direction is infinite (zero or denormal component): the interval bounds below
+// assume one finite sign per axis, so such rays go alone. Lanes outside `lanes` copy the first ray.
+template <int P>
+inline bool make_packet(const detail::BoxRay* box, uint32_t lanes, PacketRays<P>* out) {
+  const int first = lowest_bit(lanes);
+  const uint8_t octant = box[first].octant;
+  float omin[3], omax[3], rmin[3], rmax[3];
+  for (int a = 0; a < 3; ++a) omin[a] = omax[a] = box[first].org[a], rmin[a] = rmax[a] = box[first].rcp[a];
+  float tmin = box[first].tnear;
+  for (uint32_t m = lanes; m; m &= m - 1) {
+    const detail::BoxRay& b = box[lowest_bit(m)];
+    if (b.octant != octant) return false;
+    for (int a = 0; a < 3; ++a) {
+      if (!(std::fabs(b.rcp[a]) <= FLT_MAX)) return false;
+      omin[a] = min_keep(b.org[a], omin[a]), omax[a] = max_keep(b.org[a], omax[a]);
+      rmin[a] = min_keep(b.rcp[a], rmin[a]), rmax[a] = max_keep(b.rcp[a], rmax[a]);
+    }
+    tmin = min_keep(b.tnear, tmin);
+  }
+  for (int i = 0; i < P; ++i) {
+    const detail::BoxRay& b = box[(lanes >> i) & 1u ? i : first];
+    out->ox[i] = b.org[0], out->oy[i] = b.org[1], out->oz[i] = b.org[2];
+    out->rx[i] = b.rcp[0], out->ry[i] = b.rcp[1], out->rz[i] = b.rcp[2];
+    out->tnear[i] = b.tnear;
+  }
+  for (int a = 0; a < 3; ++a) {
+    const bool neg = (octant >> a) & 1u;
+    out->o_near[a] = neg ? omin[a] : omax[a];
+    out->o_far[a] = neg ? omax[a] : omin[a];
+    out->rmin[a] = rmin[a], out->rmax[a] = rmax[a];
+  }
+  out->tnear_min = tmin;
+  out->octant = octant;
+  return true;
+}
+
+// Wu 2016 §2.2 frustum culling, by interval arithmetic over the packet's origins and reciprocal
+// directions: per child, a lower bound of every ray's entry and an upper bound of every ray's (padded)
+// exit distance. Rounding is monotone, so each bound computed from the interval's ends in the same
+// float operations as the ray's own test bounds that test's value: a child any ray of the packet
+// enters (packet_child_test) is in the mask.
+template <class VW, int W, int P>
+inline uint32_t packet_frustum_test(const fmt::WideNode<W>& node, const PacketRays<P>& pr, float tfar_max) {
+  const float* planes = &node.lo[0][0];
+  const VW up = VW::splat(detail::kFarPadUp), down = VW::splat(detail::kFarPadDown);
+  uint32_t mask = 0;
+  for (int off = 0; off < W; off += VW::kLanes) {
+    VW tn = VW::splat(pr.tnear_min), tf = VW::splat(tfar_max);
+    for (int a = 0; a < 3; ++a) {
+      const bool neg = (pr.octant >> a) & 1u;
+      const VW dn = VW::load(planes + (neg ? 3 * W : 0) + a * W + off) - VW::splat(pr.o_near[a]);
+      const VW df = VW::load(planes + (neg ? 0 : 3 * W) + a * W + off) - VW::splat(pr.o_far[a]);
+      const VW r0 = VW::splat(pr.rmin[a]), r1 = VW::splat(pr.rmax[a]);
+      tn = vmax(vmin(dn * r0, dn * r1), tn);
+      tf = vmin(vmax(df * r0, df * r1), tf);
+    }
+    tf = vmax(tf * up, tf * down);
+    mask |= (tn <= tf).bits() << off;
+  }
+  return mask;
+}
+
+// Ize 2013 §3 slab test of child `j` for every ray of the packet, one lane per ray: the same float
+// operations in the same order as box_test_simd does for one ray and W children, so each lane's mask
+// bit and entry distance equal that ray's own.
+template <class VP, int W, int P>
+inline uint32_t packet_child_test(const fmt::WideNode<W>& node, int j, const PacketRays<P>& pr, const float* tfar,
+                                  float* dist) {
+  const float* planes = &node.lo[0][0];
+  float np[3], fp[3];
+  for (int a = 0; a < 3; ++a) {
+    const bool neg = (pr.octant >> a) & 1u;
+    np[a] = planes[(neg ? 3 * W : 0) + a * W + j];
+    fp[a] = planes[(neg ? 0 : 3 * W) + a * W + j];
+  }
+  const VP up = VP::splat(detail::kFarPadUp), down = VP::splat(detail::kFarPadDown);
+  uint32_t mask = 0;
+  for (int off = 0; off < P; off += VP::kLanes) {
+    const VP ox = VP::load(pr.ox + off), oy = VP::load(pr.oy + off), oz = VP::load(pr.oz + off);
+    const VP rx = VP::load(pr.rx + off), ry = VP::load(pr.ry + off), rz = VP::load(pr.rz + off);
+    VP tn = vmax((VP::splat(np[0]) - ox) * rx, VP::load(pr.tnear + off));
+    VP tf = vmin((VP::splat(fp[0]) - ox) * rx, VP::load(tfar + off));
+    tn = vmax((VP::splat(np[1]) - oy) * ry, tn);
+    tf = vmin((VP::splat(fp[1]) - oy) * ry, tf);
+    tn = vmax((VP::splat(np[2]) - oz) * rz, tn);
+    tf = vmin((VP::splat(fp[2]) - oz) * rz, tf);
+    tf = vmax(tf * up, tf * down);
+    tn.store(dist + off);
+    mask |= (tn <= tf).bits() << off;
+  }
+  return mask;
+}
+
+// Depth-first packet walk of one level from `root` for the rays of `mask`: children in the node's
+// octant order, nearest on top, each stack entry with its rays and their entry distances; a popped
+// entry keeps only the rays whose distance is within their (padded) live tfar. `live` is shared with
+// the callbacks: a ray they finish (any hit, overflow) leaves every walk of the packet.
+// leaf(ref, rays) tests a leaf for those rays; single(ref, lane) walks subtree `ref` for one ray.
+// Returns kOverflow when the stack would overflow (a tree deeper than kMaxDepth), else kDone.
+template <class K, int W, int P, class LeafFn, class SingleFn>
+inline Walk walk_packet(const fmt::WideNode<W>* nodes, uint32_t root, uint32_t mask, const PacketRays<P>& pr,
+                        const float* tfar, const uint32_t& live, LeafFn&& leaf, SingleFn&& single, PacketCounters& pc) {
+  using VW = typename K::template Vec<W>;
+  using VP = typename K::template Vec<P>;
+  struct Entry {
+    uint32_t ref, rays;
+    float dist[P];
+  };
+  constexpr int kCapacity = (W - 1) * detail::kMaxDepth + W + 1;
+  Entry stack[kCapacity];
+  int sp = 0;
+  uint32_t cur = root;
+  for (;;) {
+    mask &= live;
+    if (mask && fmt::ChildRef::is_leaf(cur)) {
+      leaf(cur, mask);
+    } else if (mask && !fmt::ChildRef::is_empty(cur)) {
+      if (bit_count(mask) < kPacketMinActive) {
+        for (uint32_t m = mask; m; m &= m - 1) single(cur, lowest_bit(m)), ++pc.single_walks;
+      } else {
+        const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
+        ++pc.node_tests;
+        pc.active_lanes += uint64_t(bit_count(mask));
+        float tfar_max = -INFINITY;
+        for (uint32_t m = mask; m; m &= m - 1) tfar_max = max_keep(tfar[lowest_bit(m)], tfar_max);
+        const uint32_t cand = packet_frustum_test<VW, W, P>(node, pr, tfar_max);
+        const uint8_t* order = node.order[pr.octant];
+        // Far to near, so the nearest child ends on top of the stack.
+        for (uint32_t om = cand ? K::template ordered<W>(cand, order) : 0u; om;) {
+          const int i = highest_bit(om);
+          om &= ~(1u << i);
+          const int j = order[i] & 15;
+          if (sp == kCapacity) return Walk::kOverflow;
+          Entry& e = stack[sp];
+          e.rays = packet_child_test<VP, W, P>(node, j, pr, tfar, e.dist) & mask;
+          if (e.rays) e.ref = node.child[j], ++sp;
+        }
+      }
+    }
+    for (;;) {
+      if (sp == 0) return Walk::kDone;
+      const Entry& e = stack[--sp];
+      uint32_t rays = e.rays & live;
+      if (!rays) continue;
+      uint32_t within = 0;
+      for (int off = 0; off < P; off += VP::kLanes) {
+        const VP t = VP::load(tfar + off);
+        within |= (VP::load(e.dist + off) <= vmax(t * VP::splat(detail::kFarPadUp), t * VP::splat(detail::kFarPadDown)))
+                      .bits()
+                  << off;
+      }
+      rays &= within;
+      if (rays) {
+        cur = e.ref;
+        mask = rays;
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace rtp::RTP_ISA_NS

@@ -1,0 +1,230 @@
+// Issue 11 packets (Wu 2016): runs of P in {4, 8, 16} consecutive rays traced as packets give the
+// single-ray answers bit for bit — camera tiles on a real sample and through rotated, mirrored and scaled
+// instances, shadow rays as any hit, packets whose rays split over octants or carry invalid and
+// degenerate rays — and the packet path is really taken (its counters), with its SIMD utilization.
+// (test_trace_paths.h runs every packet size on every check_all_paths scene as well.)
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "bvh/bvh.h"
+#include "core/error.h"
+#include "mesh/shapes.h"
+#include "oracle/rays.h"
+#include "scene/import.h"
+#include "trace/trace.h"
+
+namespace rtp::test {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+
+std::vector<Isa> simd_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::kAvx2, Isa::kAvx512})
+    if (static_cast<int>(isa) <= static_cast<int>(detect_isa())) out.push_back(isa);
+  return out;
+}
+
+bool same(const fmt::Hit& a, const fmt::Hit& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// A sphere and a grid placed rotated, mirrored, scaled and translated, several times each.
+Scene instanced_scene() {
+  Scene s;
+  s.meshes.push_back(make_icosphere(3));
+  s.meshes.push_back(make_grid(12, 12));
+  for (int k = 0; k < 9; ++k) {
+    Instance in;
+    in.mesh = k % 3 == 2 ? 1u : 0u;
+    const double a = 0.7 * k, c = std::cos(a), sn = std::sin(a), scale = 0.5 + 0.25 * (k % 4);
+    const double mirror = k % 4 == 1 ? -1.0 : 1.0;
+    in.transform(0, 0) = scale * c * mirror, in.transform(0, 1) = -scale * sn;
+    in.transform(1, 0) = scale * sn * mirror, in.transform(1, 1) = scale * c;
+    in.transform(2, 2) = scale * (k % 3 == 2 ? 0.2 : 1.0);
+    in.transform(0, 3) = 2.5 * (k % 3), in.transform(1, 3) = 2.5 * (k / 3), in.transform(2, 3) = 0.3 * k;
+    in.mirrored = mirror < 0;
+    s.instances.push_back(in);
+  }
+  s.bounds = Aabb{};
+  for (const Instance& in : s.instances)
+    for (uint32_t v : s.meshes[in.mesh].indices) s.bounds.grow(in.transform.apply(to_d(s.meshes[in.mesh].positions[v])));
+  return s;
+}
+
+struct Answers {
+  std::vector<fmt::Hit> hits;
+  std::vector<uint8_t> occluded;
+  TraceStats closest, any;
+};
+
+template <int W, int B>
+Answers run(const SceneView<W, B>& view, const std::vector<fmt::Ray>& rays, const TraceOptions& o) {
+  Answers a;
+  a.hits.resize(rays.size());
+  a.occluded.assign(rays.size(), 7);
+  a.closest = trace_closest<W, B>(view, rays.data(), a.hits.data(), rays.size(), o);
+  a.any = trace_any<W, B>(view, rays.data(), a.occluded.data(), rays.size(), o);
+  return a;
+}
+
+// Every SIMD ISA and packet size against that ISA's single rays, ray by ray; at least `min_packet_share`
+// of the rays went in packets, and their SIMD utilization (active rays per packet node test / P) is at
+// least `above_floor` beyond the floor 3/P that the rule of kPacketMinActive (3) alone guarantees.
+template <int W, int B>
+void expect_packets_equal_single(const SceneView<W, B>& view, const std::vector<fmt::Ray>& rays, const std::string& what,
+                                 double above_floor, double min_packet_share) {
+  for (Isa isa : simd_isas()) {
+    const Answers single = run<W, B>(view, rays, {isa, TraversalOrder::kOctantStack, 0});
+    EXPECT_EQ(single.closest.packets, 0u);
+    for (uint32_t p : {4u, 8u, 16u}) {
+      const std::string path = what + " W=" + std::to_string(W) + " B=" + std::to_string(B) + " " + isa_name(isa) +
+                               " packets of " + std::to_string(p);
+      const Answers got = run<W, B>(view, rays, {isa, TraversalOrder::kOctantStack, p});
+      int bad = 0;
+      for (size_t i = 0; i < rays.size() && bad < 5; ++i) {
+        if (!same(got.hits[i], single.hits[i]))
+          ++bad, ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << single.hits[i].t
+                               << ", instance " << got.hits[i].instance << " vs " << single.hits[i].instance << ", prim "
+                               << got.hits[i].prim << " vs " << single.hits[i].prim;
+        if (got.occluded[i] != single.occluded[i])
+          ++bad, ADD_FAILURE() << path << " ray " << i << ": occluded " << int(got.occluded[i]) << " vs "
+                               << int(single.occluded[i]);
+      }
+      EXPECT_EQ(got.closest.rays, rays.size()) << path;
+      EXPECT_EQ(got.closest.invalid_rays, single.closest.invalid_rays) << path;
+      EXPECT_EQ(got.closest.overflow_rays, 0u) << path;
+      // The packet path was taken, by most rays, and its node tests kept lanes busy.
+      EXPECT_GT(got.closest.packets, 0u) << path;
+      EXPECT_GE(double(got.closest.packet_rays), min_packet_share * double(rays.size())) << path;
+      EXPECT_LE(got.closest.packet_rays, got.closest.packets * p) << path;
+      ASSERT_GT(got.closest.packet_node_tests, 0u) << path;
+      const double utilization = double(got.closest.packet_active_lanes) / (double(got.closest.packet_node_tests) * p);
+      EXPECT_LE(utilization, 1.0) << path;
+      EXPECT_GE(utilization, std::min(1.0, 3.0 / p + above_floor)) << path;
+      std::printf("%s: SIMD utilization %.1f%%, %.1f%% of the rays in packets\n", path.c_str(), 100 * utilization,
+                  100.0 * double(got.closest.packet_rays) / double(rays.size()));
+      EXPECT_GT(got.any.packets, 0u) << path;
+    }
+  }
+}
+
+TEST(TracePackets, CameraTilesOnARealSampleEqualSingleRays) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  const Scene scene = import_gltf(RTP_SOURCE_DIR "/samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf");
+  const InCoreScene<8, 8> base = InCoreScene<8, 8>::build(scene);
+  RayGenOptions gen;
+  gen.seed = 9;
+  gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(base.view(), r, h, n, {}); };
+  // Primary rays come in 4x4 pixel tiles (oracle/rays.h): packets of 4, 8, 16 are 2x2-ish, 4x2, 4x4 tiles.
+  const std::vector<fmt::Ray> primary = generate_rays(scene, RayKind::kPrimary, 4096, gen);
+  const std::vector<fmt::Ray> shadow = generate_rays(scene, RayKind::kShadow, 2048, gen);
+  const InCoreScene<4, 4> w4 = InCoreScene<4, 4>::build(scene);
+  const InCoreScene<16, 8> w16 = InCoreScene<16, 8>::build(scene);
+  // Shadow rays toward one light from scattered hits are less coherent: fewer go in packets.
+  expect_packets_equal_single<8, 8>(base.view(), primary, "FlightHelmet primary", 0.1, 0.9);
+  expect_packets_equal_single<8, 8>(base.view(), shadow, "FlightHelmet shadow", 0.0, 0.1);
+  expect_packets_equal_single<4, 4>(w4.view(), primary, "FlightHelmet primary", 0.1, 0.9);
+  expect_packets_equal_single<16, 8>(w16.view(), primary, "FlightHelmet primary", 0.1, 0.9);
+  expect_packets_equal_single<16, 8>(w16.view(), shadow, "FlightHelmet shadow", 0.0, 0.1);
+}
+
+TEST(TracePackets, PacketsThroughRotatedMirroredScaledInstancesEqualSingleRays) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  const Scene scene = instanced_scene();
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(scene);
+  RayGenOptions gen;
+  gen.seed = 4;
+  gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(bvh.view(), r, h, n, {}); };
+  const std::vector<fmt::Ray> rays = generate_rays(scene, RayKind::kPrimary, 4096, gen);
+  const std::vector<fmt::Ray> shadow = generate_rays(scene, RayKind::kShadow, 2048, gen);
+  size_t hits = 0;
+  {
+    std::vector<fmt::Hit> h(rays.size());
+    trace_closest<8, 8>(bvh.view(), rays.data(), h.data(), rays.size(), {});
+    for (const fmt::Hit& x : h) hits += x.instance != fmt::Hit::kNone;
+  }
+  EXPECT_GT(hits, rays.size() / 8) << "the camera must see the instances";
+  expect_packets_equal_single<8, 8>(bvh.view(), rays, "instances primary", 0.1, 0.9);
+  expect_packets_equal_single<8, 8>(bvh.view(), shadow, "instances shadow", 0.0, 0.1);
+  const InCoreScene<16, 16> w16 = InCoreScene<16, 16>::build(scene);
+  expect_packets_equal_single<16, 16>(w16.view(), rays, "instances primary", 0.1, 0.9);
+}
+
+// Packets of 16 whose rays point into different octants, or carry NaN, tnear > tfar, zero and
+// axis-parallel directions: the first valid ray's octant forms the packet, the others go alone.
+TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  const Scene scene = instanced_scene();
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(scene);
+  const Aabb b = scene.bounds;
+  const float cx = float(0.5 * (b.lo.x + b.hi.x)), cy = float(0.5 * (b.lo.y + b.hi.y));
+  std::vector<fmt::Ray> rays;
+  size_t expect_invalid = 0;
+  for (int tile = 0; tile < 64; ++tile) {
+    for (int i = 0; i < 16; ++i) {
+      fmt::Ray r{};
+      r.org[0] = cx + 0.01f * float(i % 4) + 0.2f * float(tile % 8) - 0.8f;
+      r.org[1] = cy + 0.01f * float(i / 4) + 0.2f * float(tile / 8) - 0.8f;
+      r.org[2] = float(b.hi.z) + 3.0f;
+      // Down, with x and y signs that flip every other lane (tiles 0..31) or in one lane only.
+      const float sx = tile < 32 ? (i % 2 ? 1.0f : -1.0f) : (i == 5 ? -1.0f : 1.0f);
+      r.dir[0] = sx * 0.05f * float(1 + i % 3), r.dir[1] = 0.04f, r.dir[2] = -1.0f;
+      r.tfar = INFINITY;
+      if (tile % 5 == 1 && i == 3) r.dir[0] = 0.0f;                  // infinite reciprocal: alone
+      if (tile % 5 == 2 && i == 0) r.org[0] = NAN, ++expect_invalid;  // the first lane is invalid
+      if (tile % 5 == 3 && i == 7) r.tnear = 5.0f, r.tfar = 1.0f, ++expect_invalid;
+      if (tile % 5 == 4 && i == 9) r.dir[0] = r.dir[1] = r.dir[2] = 0.0f;  // zero direction: a miss
+      rays.push_back(r);
+    }
+  }
+  rays.resize(rays.size() - 5);  // a last, short packet
+  for (Isa isa : simd_isas()) {
+    const Answers single = run<8, 8>(bvh.view(), rays, {isa, TraversalOrder::kOctantStack, 0});
+    size_t hit = 0;
+    for (const fmt::Hit& h : single.hits) hit += h.instance != fmt::Hit::kNone;
+    EXPECT_GT(hit, rays.size() / 4);
+    for (uint32_t p : {4u, 8u, 16u}) {
+      const Answers got = run<8, 8>(bvh.view(), rays, {isa, TraversalOrder::kOctantStack, p});
+      for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_TRUE(same(got.hits[i], single.hits[i])) << isa_name(isa) << " packets of " << p << " ray " << i;
+        ASSERT_EQ(got.occluded[i], single.occluded[i]) << isa_name(isa) << " packets of " << p << " ray " << i;
+      }
+      EXPECT_EQ(got.closest.invalid_rays, expect_invalid);
+      EXPECT_GT(got.closest.packets, 0u);
+      EXPECT_LT(got.closest.packet_rays, rays.size() - expect_invalid) << "split octants must leave rays out";
+    }
+  }
+}
+
+TEST(TracePackets, OtherPacketSizesAreRefused) {
+  Scene scene;
+  scene.meshes.push_back(make_cube());
+  scene.instances.push_back(Instance{});
+  scene.bounds = Aabb{};
+  for (const auto& p : scene.meshes[0].positions) scene.bounds.grow(to_d(p));
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(scene);
+  const fmt::Ray ray{{0, 0, 5}, 0, {0, 0, -1}, INFINITY};
+  fmt::Hit h{};
+  uint8_t occ = 0;
+  for (uint32_t bad : {1u, 2u, 3u, 12u, 32u}) {
+    TraceOptions o{detect_isa(), TraversalOrder::kOctantStack, bad};
+    try {
+      trace_closest<8, 8>(bvh.view(), &ray, &h, 1, o);
+      ADD_FAILURE() << "packet size " << bad << " accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ExitCode::kUsage);
+      EXPECT_NE(std::string(e.what()).find("packet size " + std::to_string(bad)), std::string::npos) << e.what();
+    }
+    EXPECT_THROW((trace_any<8, 8>(bvh.view(), &ray, &occ, 1, o)), Error);
+  }
+  // The scalar ISA takes a valid size and traces single rays.
+  const TraceStats st = trace_closest<8, 8>(bvh.view(), &ray, &h, 1, {Isa::kScalar, TraversalOrder::kOctantStack, 8});
+  EXPECT_EQ(st.packets, 0u);
+  EXPECT_EQ(h.t, 4.0f);
+}
+
+}}  // namespace
+}  // namespace rtp::test
