@@ -19,7 +19,7 @@ struct SimdNodeRay {
 };
 
 template <class V, int W>
-inline SimdNodeRay<V> simd_node_ray(const detail::BoxRay& r) {
+RTP_KERNEL_INLINE SimdNodeRay<V> simd_node_ray(const detail::BoxRay& r) {
   static_assert(offsetof(fmt::WideNode<W>, hi) == 3 * W * sizeof(float));
   SimdNodeRay<V> n{V::splat(r.org[0]), V::splat(r.org[1]), V::splat(r.org[2]), V::splat(r.rcp[0]),
                    V::splat(r.rcp[1]), V::splat(r.rcp[2]), V::splat(r.tnear), {}, {}};
@@ -33,7 +33,7 @@ inline SimdNodeRay<V> simd_node_ray(const detail::BoxRay& r) {
 // Ize 2013 "Robust BVH Ray Traversal" §3: sign-selected planes per octant, NaN-dropping vmin/vmax
 // (candidate first, accumulator second), far distance padded by 1 + 2γ(3) toward +inf.
 template <class V, int W>
-inline uint32_t box_test_simd(const fmt::WideNode<W>& node, const SimdNodeRay<V>& r, float tfar, float* dist) {
+RTP_KERNEL_INLINE uint32_t box_test_simd(const fmt::WideNode<W>& node, const SimdNodeRay<V>& r, float tfar, float* dist) {
   const float* planes = &node.lo[0][0];
   const float* near_x = planes + r.near_off[0];
   const float* near_y = planes + r.near_off[1];

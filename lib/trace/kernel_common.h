@@ -21,7 +21,7 @@ inline float max_keep(float candidate, float acc) { return candidate > acc ? can
 inline float min_keep(float candidate, float acc) { return candidate < acc ? candidate : acc; }
 
 // Ize 2013 "Robust BVH Ray Traversal" §3: far distance scaled by 1 + 2γ(3), toward +inf for either sign.
-inline float pad_far(float t) { return max_keep(t * detail::kFarPadUp, t * detail::kFarPadDown); }
+RTP_KERNEL_INLINE float pad_far(float t) { return max_keep(t * detail::kFarPadUp, t * detail::kFarPadDown); }
 
 // double -> float without the undefined out-of-range conversion: beyond FLT_MAX gives ±inf, NaN stays NaN.
 inline float to_float(double x) {
@@ -99,7 +99,7 @@ enum class Walk { kDone, kStop, kOverflow };  // kStop: any-hit found
 // `prefetch_leaf(ref)` the first block of leaves. Most are visited soon, and the loads then overlap
 // instead of each node waiting for its own cache misses.
 template <int W, class PrefetchLeaf>
-inline void prefetch_children(const fmt::WideNode<W>* nodes, const fmt::WideNode<W>& node, uint32_t mask,
+RTP_KERNEL_INLINE void prefetch_children(const fmt::WideNode<W>* nodes, const fmt::WideNode<W>& node, uint32_t mask,
                               PrefetchLeaf&& prefetch_leaf) {
   for (uint32_t m = mask; m; m &= m - 1) {
     const uint32_t ref = node.child[__builtin_ctz(m)];

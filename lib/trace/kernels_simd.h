@@ -17,23 +17,23 @@ struct SimdKernels {
   template <int W>
   using NodeRay = SimdNodeRay<Vec<W>>;
   template <int W>
-  static NodeRay<W> node_ray(const detail::BoxRay& r) {
+  RTP_KERNEL_INLINE static NodeRay<W> node_ray(const detail::BoxRay& r) {
     return simd_node_ray<Vec<W>, W>(r);
   }
   template <int W>
-  static uint32_t node(const fmt::WideNode<W>& n, const NodeRay<W>& r, float tfar, float* dist) {
+  RTP_KERNEL_INLINE static uint32_t node(const fmt::WideNode<W>& n, const NodeRay<W>& r, float tfar, float* dist) {
     return box_test_simd<Vec<W>, W>(n, r, tfar, dist);
   }
   template <int W>
-  static uint32_t ordered(uint32_t mask, const uint8_t* order) {
+  RTP_KERNEL_INLINE static uint32_t ordered(uint32_t mask, const uint8_t* order) {
     return ordered_mask_sse<W>(mask, order);
   }
   template <int B>
-  static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
+  RTP_KERNEL_INLINE static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_simd<Vec<B>, B, false>(b, r, tfar, out);
   }
   template <int B>
-  static bool block_any(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar) {
+  RTP_KERNEL_INLINE static bool block_any(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar) {
     return triangle_test_simd<Vec<B>, B, true>(b, r, tfar, nullptr) != 0;
   }
 };

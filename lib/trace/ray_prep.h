@@ -15,16 +15,16 @@
 
 namespace rtp::RTP_ISA_NS {
 
-inline bool ray_is_valid(const fmt::Ray& ray) {
+RTP_KERNEL_INLINE bool ray_is_valid(const fmt::Ray& ray) {
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(ray.org[a]) || !std::isfinite(ray.dir[a])) return false;
   // NaN fails both comparisons; tnear = +inf would leave only t = +inf, which is never a hit.
   return ray.tnear <= ray.tfar && ray.tnear < INFINITY;
 }
 
-inline bool direction_usable(const float dir[3]) { return dir[0] != 0.0f || dir[1] != 0.0f || dir[2] != 0.0f; }
+RTP_KERNEL_INLINE bool direction_usable(const float dir[3]) { return dir[0] != 0.0f || dir[1] != 0.0f || dir[2] != 0.0f; }
 
-inline void setup_box_ray(const float org[3], const float dir[3], float tnear, detail::BoxRay* out) {
+RTP_KERNEL_INLINE void setup_box_ray(const float org[3], const float dir[3], float tnear, detail::BoxRay* out) {
   out->octant = 0;
   for (int a = 0; a < 3; ++a) {
     out->org[a] = org[a];
@@ -38,7 +38,7 @@ inline void setup_box_ray(const float org[3], const float dir[3], float tnear, d
 }
 
 // Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3, per-ray pre-computation.
-inline void setup_tri_ray(const float org[3], const float dir[3], float tnear, detail::TriRay* out) {
+RTP_KERNEL_INLINE void setup_tri_ray(const float org[3], const float dir[3], float tnear, detail::TriRay* out) {
   const float ax = std::fabs(dir[0]), ay = std::fabs(dir[1]), az = std::fabs(dir[2]);
   int kz = 0;
   if (ay > ax) kz = 1;
@@ -68,7 +68,7 @@ inline void setup_tri_ray(const float org[3], const float dir[3], float tnear, d
 // A record that moves no ray: T = 0 and L^-1 = I exactly. transform_ray would return the world ray bit
 // for bit (x - 0 and 1·x + 0·y + 0·z are exact in double), so walks skip it (glTF nodes without a
 // transform are most instances of many scenes).
-inline bool moves_no_ray(const fmt::InstanceRecord& inst) {
+RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
   const float* m = inst.inverse_linear;
   return inst.translation[0] == 0 && inst.translation[1] == 0 && inst.translation[2] == 0 && m[0] == 1.0f &&
          m[4] == 1.0f && m[8] == 1.0f && m[1] == 0.0f && m[2] == 0.0f && m[3] == 0.0f && m[5] == 0.0f && m[6] == 0.0f &&
@@ -79,7 +79,7 @@ inline bool moves_no_ray(const fmt::InstanceRecord& inst) {
 // (issue 11: a float 3x4 inverse put a small instance at 3e6 up to 0.25 units off). org - T is exact
 // to 2^-53 of the larger magnitude and products of floats are exact in double, so the only rounding
 // that matters is the final one to float, relative to the local coordinates.
-inline bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[3],
+RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[3],
                           float out_dir[3]) {
   const double rel[3] = {double(org[0]) - inst.translation[0], double(org[1]) - inst.translation[1],
                          double(org[2]) - inst.translation[2]};

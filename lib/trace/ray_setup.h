@@ -5,6 +5,11 @@
 
 #include "formats/ray_file.h"
 
+// Issue 11: the kernels and per-ray set-up are forced inline into the walk. GCC left box_test_simd,
+// triangle_test_simd and setup_box_ray out of line (each walk instantiation calls them from several
+// places), which reloaded the ray from memory and ran a vzeroupper at every node.
+#define RTP_KERNEL_INLINE inline __attribute__((always_inline))
+
 namespace rtp::detail {
 
 // Traversal stacks are sized for this many inner-node levels (lib/bvh's depth limit); a deeper

@@ -40,7 +40,7 @@ struct ClosestSink {
   Closest best;
   float& tfar() { return best.t; }
   template <class K, int B>
-  Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t id) {
+  RTP_KERNEL_INLINE Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t id) {
     BlockHits<B> h;
     for (uint32_t m = K::template block<B>(blk, tri, best.t, &h); m; m &= m - 1) {
       const int i = lowest_bit(m);
@@ -57,7 +57,7 @@ struct AnySink {
   float t;
   float& tfar() { return t; }
   template <class K, int B>
-  Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t) {
+  RTP_KERNEL_INLINE Walk block(const fmt::LeafBlock<B>& blk, const detail::TriRay& tri, uint32_t) {
     return K::template block_any<B>(blk, tri, t) ? Walk::kStop : Walk::kDone;
   }
 };
@@ -70,7 +70,7 @@ inline Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, 
   const MeshBvhView<W, B>& mesh = s.meshes[s.instances[id].mesh];
   detail::TriRay tri;
   bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
-  auto block_leaf = [&](uint32_t leaf_ref) -> Walk {
+  auto block_leaf = [&](uint32_t leaf_ref) __attribute__((always_inline)) -> Walk {
     if (!tri_ready) setup_tri_ray(org, dir, tnear, &tri), tri_ready = true;
     const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
     for (uint32_t b = b0; b < b0 + nb; ++b) {
@@ -79,7 +79,7 @@ inline Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, 
     }
     return Walk::kDone;
   };
-  auto prefetch_block = [&](uint32_t leaf_ref) {
+  auto prefetch_block = [&](uint32_t leaf_ref) __attribute__((always_inline)) {
     const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
     for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
   };

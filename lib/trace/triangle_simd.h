@@ -16,7 +16,7 @@ namespace rtp::RTP_ISA_NS {
 // in [tnear, tfar] and finite;
 // u = V / det, v = W / det.
 template <class V, int B, bool kAny>
-inline uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar,
+RTP_KERNEL_INLINE uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar,
                                    BlockHits<B>* out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const V ox = V::splat(r.org_k[0]), oy = V::splat(r.org_k[1]), oz = V::splat(r.org_k[2]);
