@@ -15,6 +15,7 @@
 
 #include "bench_run.h"
 #include "package/write_package.h"
+#include "trace/trace.h"
 
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
@@ -57,7 +58,7 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
   ASSERT_TRUE(j.is_array());
   std::set<std::string> kinds, orders;
   std::set<int> widths;
-  int builds = 0, sah = 0;
+  int builds = 0, sah = 0, primary = 0;
   for (const json& rec : j) {
     if (rec["type"] == "build") {
       ++builds;
@@ -75,6 +76,16 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
     kinds.insert(rec["kind"].get<std::string>());
     orders.insert(rec["order"].get<std::string>());
     widths.insert(rec["width"].get<int>());
+    // Primary rays are timed in packets of 16 (one record per width: packets walk in octant order),
+    // the others one ray at a time in each order.
+    const bool packets = rec["kind"] == "primary" && rec["isa"] != "scalar";
+    EXPECT_EQ(rec["packet"], packets ? 16 : 0) << rec.dump();
+    if (rec["kind"] == "primary") {
+      ++primary;
+      if (packets) {
+        EXPECT_EQ(rec["order"], "octant-stack");
+      }
+    }
     EXPECT_EQ(rec["threads"], 1);
     EXPECT_EQ(rec["rays"], 1000);
     EXPECT_EQ(rec["query"], rec["kind"] == "shadow" ? "any" : "closest");
@@ -91,6 +102,9 @@ TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
   EXPECT_EQ(orders, (std::set<std::string>{"octant-stack", "active-list"}));
   EXPECT_EQ(widths, (std::set<int>{4, 8, 16}));
   EXPECT_EQ(builds, 3);
+  if (j[0]["isa"] != "scalar") {
+    EXPECT_EQ(primary, 3);
+  }
   EXPECT_EQ(sah, 6);  // W = 4, 8, 16 x collapse, split
 }
 
@@ -140,6 +154,17 @@ TEST_F(OracleBench, DefaultsAreTheQuickRun) {
   EXPECT_NE(t.out.find("mem B/tri"), std::string::npos) << t.out;
   EXPECT_NE(t.out.find("\nrandom   closest   8 octant-stack   1 "), std::string::npos) << t.out;
   EXPECT_EQ(run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --convert --all").code, 1);
+  // --primary-packet: the primary row's label says how its rays were traced; 0 = single rays.
+  const std::string suzanne = q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --kinds primary";
+  if (static_cast<int>(rtp::detect_isa()) >= static_cast<int>(rtp::Isa::kAvx2)) {
+    const ToolRun p16 = run(suzanne + " --isa avx2");
+    ASSERT_EQ(p16.code, 0) << p16.out;
+    EXPECT_NE(p16.out.find("\nprimary  closest   8 packet-16      1 "), std::string::npos) << p16.out;
+  }
+  const ToolRun p0 = run(suzanne + " --primary-packet 0 --json");
+  ASSERT_EQ(p0.code, 0) << p0.out;
+  EXPECT_EQ(json::parse(p0.out)[0]["packet"], 0);
+  EXPECT_EQ(run(suzanne + " --primary-packet 3").code, 1);
 }
 
 // --convert: the tool's stdout and stderr, each into a file of `dir`; `env` is prefixed to the command.

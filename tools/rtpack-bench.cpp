@@ -79,6 +79,9 @@ struct Config {
   Isa isa = Isa::kScalar;
   int reps = 3;
   uint64_t seed = 1;
+  // Primary rays are timed as packets of this many consecutive rays (Wu 2016; 0 = single rays), as
+  // Embree's are timed in its 16-ray packets.
+  uint32_t primary_packet = 16;
   bool json = false;
   bool build_stats = false;
   size_t steps = 0, step = 0;  // timed configurations, for the progress line
@@ -107,6 +110,7 @@ struct Record {
   RayKind kind;
   int width = 0;
   TraversalOrder order;
+  uint32_t packet = 0;  // rays per packet (0: single rays)
   int threads = 0;
   double rtpack_mrays = 0, embree_mrays = 0;
   double bytes_per_triangle = 0;
@@ -130,10 +134,11 @@ uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
 
 void print_row(FILE* o, const Record& r) {
   const bool any = r.kind == RayKind::kShadow;
+  const std::string order = r.packet ? "packet-" + std::to_string(r.packet) : order_name(r.order);
   std::fprintf(o,
                "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
                " / %" PRIu64 "\n",
-               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order_name(r.order), r.threads, r.rtpack_mrays,
+               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays,
                r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
                r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped);
   std::fflush(o);
@@ -181,7 +186,10 @@ void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std:
     std::vector<fmt::Hit> hits(n), embree_hits(n);
     std::vector<uint8_t> occ(n), embree_occ(n);
     for (TraversalOrder order : cfg.orders) {
-      const TraceOptions topt{cfg.isa, order};
+      // Packets walk in octant order whatever `order` says: one packet row per kind, not one per order.
+      const uint32_t packet = k.kind == RayKind::kPrimary && cfg.isa != Isa::kScalar ? cfg.primary_packet : 0;
+      if (packet && order != cfg.orders.front()) continue;
+      const TraceOptions topt{cfg.isa, order, packet};
       for (int t : cfg.threads) {
         ++cfg.step;
         progress("[" + std::to_string(cfg.step) + "/" + std::to_string(cfg.steps) + "] timing " + ray_kind_name(k.kind) +
@@ -219,7 +227,8 @@ void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std:
         Record rec;
         rec.kind = k.kind;
         rec.width = W;
-        rec.order = order;
+        rec.order = packet ? TraversalOrder::kOctantStack : order;
+        rec.packet = packet;
         rec.threads = t;
         rec.rtpack_mrays = double(n) / secs * 1e-6;
         rec.embree_mrays = double(n) / embree_secs * 1e-6;
@@ -294,7 +303,10 @@ int run(Config& cfg) {
   // The header now and each row as its configuration finishes (stdout, or stderr when stdout carries JSON).
   FILE* o = cfg.json ? stderr : stdout;
   cfg.table = o;
-  cfg.steps = cfg.kinds.size() * cfg.widths.size() * cfg.orders.size() * cfg.threads.size();
+  cfg.steps = 0;
+  for (RayKind kind : cfg.kinds)  // a packet row (primary rays) walks in one order
+    cfg.steps += (kind == RayKind::kPrimary && cfg.primary_packet && cfg.isa != Isa::kScalar ? 1 : cfg.orders.size()) *
+                 cfg.widths.size() * cfg.threads.size();
   const std::string cpu = rtp::bench::cpu_model();
   progress_done();
   std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
@@ -358,6 +370,7 @@ int run(Config& cfg) {
                      {"width", r.width},
                      {"block", r.width},
                      {"order", order_name(r.order)},
+                     {"packet", r.packet},
                      {"isa", isa_name(cfg.isa)},
                      {"threads", r.threads},
                      {"rays", k->rays.size()},
@@ -457,6 +470,10 @@ int main(int argc, char** argv) {
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512 (default best)");
   app.add_option("--reps", cfg.reps, "timed repetitions, best taken (default 3)")->check(CLI::Range(1, 100));
   app.add_option("--seed", cfg.seed, "ray generator seed (default 1)");
+  app.add_option("--primary-packet", cfg.primary_packet,
+                 "rays per packet for primary rays: 4, 8, 16, or 0 for single rays (default 16; Embree's are timed in "
+                 "16-ray packets)")
+      ->check(CLI::IsMember({0, 4, 8, 16}));
   app.add_flag("--json", cfg.json, "print the records as a JSON array on stdout (the table goes to stderr)");
   auto* build_stats =
       app.add_flag("--build-stats", cfg.build_stats, "also time BVH builds against Embree HIGH and print lib/bvh's SAH table");
