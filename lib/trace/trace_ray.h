@@ -26,7 +26,7 @@ struct Closest {
 };
 
 template <TraversalOrder O, class K, int W, class LeafFn, class PrefetchFn>
-inline Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
+RTP_KERNEL_INLINE Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
                  LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   if constexpr (O == TraversalOrder::kOctantStack)
     return walk_octant_stack<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
@@ -65,8 +65,8 @@ struct AnySink {
 // One ray through one instance's mesh BVH from node `root` (the mesh's root, or a subtree a packet
 // left the ray in, packet.h), with the ray in the mesh's local space: org/dir and their box form.
 template <class K, TraversalOrder O, int W, int B, class Sink>
-inline Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, const float org[3], const float dir[3],
-                          float tnear, const detail::BoxRay& box, Sink& sink) {
+RTP_KERNEL_INLINE Walk walk_mesh_inline(const SceneView<W, B>& s, uint32_t id, uint32_t root, const float org[3],
+                                        const float dir[3], float tnear, const detail::BoxRay& box, Sink& sink) {
   const MeshBvhView<W, B>& mesh = s.meshes[s.instances[id].mesh];
   detail::TriRay tri;
   bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
@@ -86,6 +86,14 @@ inline Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, 
   return walk<O, K, W>(mesh.nodes, root, box, sink.tfar(), block_leaf, prefetch_block);
 }
 
+// The same, out of line: one copy per (ISA, order, W, B, sink) that every instance visit calls (issue 11:
+// two inlined copies in the instance leaf cost more than the call). The one-instance path inlines it.
+template <class K, TraversalOrder O, int W, int B, class Sink>
+__attribute__((noinline)) Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t id, uint32_t root, const float org[3],
+                                             const float dir[3], float tnear, const detail::BoxRay& box, Sink& sink) {
+  return walk_mesh_inline<K, O>(s, id, root, org, dir, tnear, box, sink);
+}
+
 // One instance-level leaf for one world ray: each instance's record moves the ray into its local space
 // (transform_ray, direction not renormalized, so t is shared by both levels) and its mesh is walked.
 // `world` is the world ray's box form: an instance that moves no ray (moves_no_ray) is walked with it.
@@ -100,16 +108,18 @@ inline Walk instance_leaf_one(const SceneView<W, B>& s, uint32_t ref, const fmt:
       __builtin_prefetch(next), __builtin_prefetch(next + 64);
     }
     const uint32_t mesh_root = s.meshes[s.instances[id].mesh].root;
-    Walk w;
-    if (moves_no_ray(s.instances[id])) {
-      w = walk_mesh_one<K, O>(s, id, mesh_root, ray.org, ray.dir, ray.tnear, world, sink);
-    } else {
-      float org[3], dir[3];
+    // One call site for both cases (the walk is one out-of-line function per sink, not two inlined copies).
+    const float* o = ray.org;
+    const float* d = ray.dir;
+    const detail::BoxRay* b = &world;
+    float org[3], dir[3];
+    detail::BoxRay box;
+    if (!moves_no_ray(s.instances[id])) {
       if (!transform_ray(s.instances[id], ray.org, ray.dir, org, dir)) continue;
-      detail::BoxRay box;
       setup_box_ray(org, dir, ray.tnear, &box);
-      w = walk_mesh_one<K, O>(s, id, mesh_root, org, dir, ray.tnear, box, sink);
+      o = org, d = dir, b = &box;
     }
+    const Walk w = walk_mesh_one<K, O>(s, id, mesh_root, o, d, ray.tnear, *b, sink);
     if (w != Walk::kDone) return w;
   }
   return Walk::kDone;
@@ -123,7 +133,7 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
   detail::BoxRay world;
   setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
   if (s.direct != kNoDirectInstance)
-    return walk_mesh_one<K, O>(s, s.direct, s.meshes[s.instances[s.direct].mesh].root, ray.org, ray.dir, ray.tnear,
+    return walk_mesh_inline<K, O>(s, s.direct, s.meshes[s.instances[s.direct].mesh].root, ray.org, ray.dir, ray.tnear,
                                world, sink);
   auto instance_leaf = [&](uint32_t ref) -> Walk { return instance_leaf_one<K, O>(s, ref, ray, world, sink); };
   return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});

@@ -11,7 +11,7 @@ namespace rtp::RTP_ISA_NS {
 // is beyond the (padded) current tfar is dropped. `tfar` is live: the leaf callback may shorten it.
 // leaf(ref) returns kDone to go on, kStop/kOverflow to end the walk with that status.
 template <class K, int W, class LeafFn, class PrefetchFn>
-inline Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
+RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
                               const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   struct Entry {
     uint32_t ref;
