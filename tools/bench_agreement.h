@@ -26,6 +26,8 @@ struct KindData {
 struct Agreement {
   uint64_t agree = 0, edge_ties = 0, precision_ties = 0, failures = 0, skipped = 0;
   std::string first_failure;
+  // Rays where Embree disagrees and the double reference sides with rtpack (not in the counts above).
+  uint64_t embree_errors = 0;
 };
 
 // Closest hits against Embree's (edge and precision ties classified on the scene).

@@ -137,10 +137,11 @@ void print_row(FILE* o, const Record& r) {
   const std::string order = r.packet ? "packet-" + std::to_string(r.packet) : order_name(r.order);
   std::fprintf(o,
                "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
-               " / %" PRIu64 "\n",
+               " / %" PRIu64 " / %" PRIu64 "\n",
                ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays,
                r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
-               r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped);
+               r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped,
+               r.agreement.embree_errors);
   std::fflush(o);
 }
 
@@ -323,7 +324,7 @@ int run(Config& cfg) {
   }
   // B/tri: the in-memory BVH (nodes + leaf blocks, raw) per unique triangle, not the stored package.
   std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
-               "Embree Mrays/s", "ratio", "mem B/tri", "agree / edge ties / precision ties / FAILURES / skipped");
+               "Embree Mrays/s", "ratio", "mem B/tri", "agree / edge ties / precision ties / FAILURES / skipped / Embree errors");
   std::fflush(o);
 
   std::vector<Record> records;
@@ -383,6 +384,7 @@ int run(Config& cfg) {
                      {"precision_ties", r.agreement.precision_ties},
                      {"failures", r.agreement.failures},
                      {"skipped", r.agreement.skipped},
+                     {"embree_errors", r.agreement.embree_errors},
                      {"embree_timed_failures", k->embree_timed_failures},
                      {"cpu", cpu}});
     }

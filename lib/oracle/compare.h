@@ -30,7 +30,7 @@
 
 namespace rtp {
 
-class BruteForceReference;
+class ExactReference;
 
 struct CompareOptions {
   double rel_tol = 1e-4;    ///< t tolerance, relative to max(1, t_ref)
@@ -44,7 +44,7 @@ struct CompareOptions {
   /// reference error (Embree's float instance matrices far from the origin), not a failure; any other
   /// disagreement is judged against the double reference. nullptr: the reference alone judges.
   /// (check_any_hit likewise.)
-  const BruteForceReference* exact = nullptr;
+  const ExactReference* exact = nullptr;
 };
 
 enum class Verdict : uint8_t { kAgree, kEdgeTie, kPrecisionTie, kFail, kSkipped };

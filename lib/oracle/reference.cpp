@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "oracle/double_tests.h"
 #include "oracle/embree_oracle.h"
 
 namespace rtp {
@@ -64,11 +65,11 @@ BruteForceReference::BruteForceReference(const Scene& scene, uint64_t max_triang
         }
       }
     }
+    // Pad generously (relative 1e-9): the box only skips work and must never cut a hit.
+    oracle_detail::pad_box(c.lo, c.hi);
     for (int a = 0; a < 3; ++a) {
-      // Pad generously (relative 1e-9): the box only skips work and must never cut a hit.
-      const double pad = 1e-9 * (std::abs(c.lo[a]) + std::abs(c.hi[a]) + (c.hi[a] - c.lo[a])) + 1e-300;
-      c.lo[a] = finite ? c.lo[a] - pad : -kInfD;
-      c.hi[a] = finite ? c.hi[a] + pad : kInfD;
+      c.lo[a] = finite ? c.lo[a] : -kInfD;
+      c.hi[a] = finite ? c.hi[a] : kInfD;
     }
     clusters_.push_back(c);
   }
@@ -83,41 +84,11 @@ bool BruteForceReference::trace(const fmt::Ray& ray, fmt::Hit* hit) const {
   uint32_t best_inst = fmt::Hit::kNone, best_prim = fmt::Hit::kNone;
   double best_u = 0, best_v = 0;
   for (const Cluster& c : clusters_) {
-    // Slab test in double on the padded box, widened by a relative 1e-9 in t.
-    double t0 = tnear, t1 = std::min(tfar, best);
-    bool reject = false;
-    for (int a = 0; a < 3 && !reject; ++a) {
-      if (d[a] == 0) {
-        reject = o[a] < c.lo[a] || o[a] > c.hi[a];
-        continue;
-      }
-      double ta = (c.lo[a] - o[a]) / d[a], tb = (c.hi[a] - o[a]) / d[a];
-      if (ta > tb) std::swap(ta, tb);
-      if (std::isnan(ta) || std::isnan(tb)) continue;  // inf box vs inf ray: do not cull
-      const double slack = 1e-9 * (std::abs(ta) + std::abs(tb)) + 1e-300;
-      t0 = std::max(t0, ta - slack);
-      t1 = std::min(t1, tb + slack);
-      reject = t0 > t1;
-    }
-    if (reject) continue;
+    if (!oracle_detail::slab_may_hit(o, d, c.lo, c.hi, tnear, std::min(tfar, best))) continue;
     for (uint32_t k = c.first; k < c.first + c.count; ++k) {
       const Tri& tr = tris_[k];
-      const double px = d[1] * tr.e2[2] - d[2] * tr.e2[1];
-      const double py = d[2] * tr.e2[0] - d[0] * tr.e2[2];
-      const double pz = d[0] * tr.e2[1] - d[1] * tr.e2[0];
-      const double det = tr.e1[0] * px + tr.e1[1] * py + tr.e1[2] * pz;
-      if (det == 0 || !std::isfinite(det)) continue;
-      const double inv = 1.0 / det;
-      const double sx = o[0] - tr.v0[0], sy = o[1] - tr.v0[1], sz = o[2] - tr.v0[2];
-      const double u = (sx * px + sy * py + sz * pz) * inv;
-      if (!(u >= 0 && u <= 1)) continue;
-      const double qx = sy * tr.e1[2] - sz * tr.e1[1];
-      const double qy = sz * tr.e1[0] - sx * tr.e1[2];
-      const double qz = sx * tr.e1[1] - sy * tr.e1[0];
-      const double v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv;
-      if (!(v >= 0 && u + v <= 1)) continue;
-      const double t = (tr.e2[0] * qx + tr.e2[1] * qy + tr.e2[2] * qz) * inv;
-      if (!(t >= tnear && t <= tfar)) continue;
+      double t, u, v;
+      if (!oracle_detail::moller_trumbore(o, d, tr.v0, tr.e1, tr.e2, tnear, tfar, &t, &u, &v)) continue;
       if constexpr (kAny) {
         return true;
       } else {
@@ -141,23 +112,27 @@ bool BruteForceReference::trace(const fmt::Ray& ray, fmt::Hit* hit) const {
   return best_inst != fmt::Hit::kNone;
 }
 
-void BruteForceReference::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n) const {
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 64), [&](const tbb::blocked_range<size_t>& r) {
+void ExactReference::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n) const {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
       if (ray_status(rays[i]) == RayStatus::kInvalid) {
         hits[i] = {std::numeric_limits<float>::infinity(), fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
         continue;
       }
-      trace<false>(rays[i], &hits[i]);
+      trace_ray(rays[i], &hits[i]);
     }
   });
 }
 
-void BruteForceReference::occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n) const {
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 64), [&](const tbb::blocked_range<size_t>& r) {
+void ExactReference::occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n) const {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i)
-      occluded[i] = ray_status(rays[i]) != RayStatus::kInvalid && trace<true>(rays[i], nullptr) ? 1 : 0;
+      occluded[i] = ray_status(rays[i]) != RayStatus::kInvalid && trace_ray(rays[i], nullptr) ? 1 : 0;
   });
+}
+
+bool BruteForceReference::trace_ray(const fmt::Ray& ray, fmt::Hit* hit) const {
+  return hit ? trace<false>(ray, hit) : trace<true>(ray, nullptr);
 }
 
 }  // namespace rtp

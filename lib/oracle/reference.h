@@ -15,18 +15,28 @@
 
 namespace rtp {
 
-class BruteForceReference {
+// A double-precision judge of disputed rays (compare.h CompareOptions::exact).
+class ExactReference {
+ public:
+  virtual ~ExactReference() = default;
+  /// Closest hit in [tnear, tfar] (inclusive), ties broken by the smaller (instance, prim).
+  /// Rays that are invalid by formats/ray_file.h miss. Parallel over rays (TBB).
+  void closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n) const;
+  /// Any hit in [tnear, tfar].
+  void occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n) const;
+
+ protected:
+  /// One valid ray: the closest hit into *hit, or whether any hit exists (hit == nullptr).
+  virtual bool trace_ray(const fmt::Ray& ray, fmt::Hit* hit) const = 0;
+};
+
+class BruteForceReference final : public ExactReference {
  public:
   /// Throws rtp::Error(kInputInvalid) when the scene has more than `max_triangles` instanced triangles.
   explicit BruteForceReference(const Scene& scene, uint64_t max_triangles = 4'000'000);
 
-  /// Closest hit in [tnear, tfar] (inclusive), ties broken by the smaller (instance, prim).
-  /// Rays that are invalid by formats/ray_file.h miss. Rays with tnear < 0 or huge components are
-  /// traced (double handles them). Parallel over rays (TBB).
-  void closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n) const;
-
-  /// Any hit in [tnear, tfar].
-  void occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n) const;
+  // closest() and occluded() (ExactReference): rays with tnear < 0 or huge components are traced
+  // (double handles them).
 
   uint64_t triangle_count() const { return tris_.size(); }
 
@@ -41,6 +51,7 @@ class BruteForceReference {
   };
   template <bool kAny>
   bool trace(const fmt::Ray& ray, fmt::Hit* hit) const;
+  bool trace_ray(const fmt::Ray& ray, fmt::Hit* hit) const override;
 
   std::vector<Tri> tris_;
   std::vector<Cluster> clusters_;
