@@ -43,6 +43,7 @@
 #include "bench_dag.h"
 #include "bench_multi_hit.h"
 #include "bench_packets.h"
+#include "bench_records.h"
 #include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
@@ -58,6 +59,12 @@ namespace {
 
 using namespace rtp;
 using bench::Agreement;
+using bench::BuildRecord;
+using bench::Record;
+using bench::build_record_json;
+using bench::print_row;
+using bench::sah_record_json;
+using bench::trace_record_json;
 using bench::Clock;
 using bench::KindData;
 using bench::agreement_any;
@@ -105,26 +112,6 @@ std::vector<std::string> split_list(const std::string& s) {
   return out;
 }
 
-// The rays of one kind and Embree's answers to them (the reference for the agreement check).
-struct Record {
-  RayKind kind;
-  int width = 0;
-  TraversalOrder order;
-  uint32_t packet = 0;  // rays per packet (0: single rays)
-  int threads = 0;
-  double rtpack_mrays = 0, embree_mrays = 0;
-  double bytes_per_triangle = 0;
-  Agreement agreement;
-};
-
-struct BuildRecord {
-  int width = 0;
-  int threads = 0;
-  double rtpack_seconds = 0, embree_seconds = 0;
-  double bytes_per_triangle = 0;
-  uint64_t bvh_bytes = 0;
-};
-
 template <int W>
 uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
   uint64_t b = 0;
@@ -132,18 +119,6 @@ uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
   return b;
 }
 
-void print_row(FILE* o, const Record& r) {
-  const bool any = r.kind == RayKind::kShadow;
-  const std::string order = r.packet ? "packet-" + std::to_string(r.packet) : order_name(r.order);
-  std::fprintf(o,
-               "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
-               " / %" PRIu64 " / %" PRIu64 "\n",
-               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays,
-               r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
-               r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped,
-               r.agreement.embree_errors);
-  std::fflush(o);
-}
 
 template <int W>
 void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std::vector<KindData>& kinds,
@@ -364,61 +339,10 @@ int run(Config& cfg) {
       const KindData* k = nullptr;
       for (const KindData& x : kinds)
         if (x.kind == r.kind) k = &x;
-      out.push_back({{"type", "trace"},
-                     {"scene", utf8_display(cfg.scene_path)},
-                     {"kind", ray_kind_name(r.kind)},
-                     {"query", k->any ? "any" : "closest"},
-                     {"width", r.width},
-                     {"block", r.width},
-                     {"order", order_name(r.order)},
-                     {"packet", r.packet},
-                     {"isa", isa_name(cfg.isa)},
-                     {"threads", r.threads},
-                     {"rays", k->rays.size()},
-                     {"rtpack_mrays", r.rtpack_mrays},
-                     {"embree_mrays", r.embree_mrays},
-                     {"ratio", r.rtpack_mrays / r.embree_mrays},
-                     {"bytes_per_triangle", r.bytes_per_triangle},
-                     {"agree", r.agreement.agree},
-                     {"edge_ties", r.agreement.edge_ties},
-                     {"precision_ties", r.agreement.precision_ties},
-                     {"failures", r.agreement.failures},
-                     {"skipped", r.agreement.skipped},
-                     {"embree_errors", r.agreement.embree_errors},
-                     {"embree_timed_failures", k->embree_timed_failures},
-                     {"cpu", cpu}});
+      out.push_back(trace_record_json(r, *k, cfg.scene_path, cfg.isa, cpu));
     }
-    for (const BuildRecord& b : builds)
-      out.push_back({{"type", "build"},
-                     {"scene", utf8_display(cfg.scene_path)},
-                     {"width", b.width},
-                     {"block", b.width},
-                     {"threads", b.threads},
-                     {"rtpack_build_s", b.rtpack_seconds},
-                     {"embree_high_build_s", b.embree_seconds},
-                     {"ratio", b.embree_seconds / b.rtpack_seconds},
-                     {"bvh_bytes", b.bvh_bytes},
-                     {"bytes_per_triangle", b.bytes_per_triangle},
-                     {"cpu", cpu}});
-    for (const BvhStatsRow& r : sah_rows)
-      out.push_back({{"type", "sah"},
-                     {"scene", utf8_display(cfg.scene_path)},
-                     {"model", r.model},
-                     {"width", r.width},
-                     {"block", r.block},
-                     {"method", method_name(r.method)},
-                     {"c_box", r.stats.c_box},
-                     {"c_tri", r.stats.c_tri},
-                     {"sah", r.stats.sah},
-                     {"branching", r.stats.branching},
-                     {"leaf_fill", r.stats.leaf_fill},
-                     {"max_depth", r.stats.max_depth},
-                     {"triangles", r.stats.primitives},
-                     {"nodes", r.stats.nodes},
-                     {"leaves", r.stats.leaves},
-                     {"bytes_per_triangle",
-                      double(r.stats.node_bytes + r.stats.block_bytes) / double(std::max<uint64_t>(1, r.stats.primitives))},
-                     {"build_s", r.build_seconds}});
+    for (const BuildRecord& b : builds) out.push_back(build_record_json(b, cfg.scene_path, cpu));
+    for (const BvhStatsRow& r : sah_rows) out.push_back(sah_record_json(r, cfg.scene_path));
     // Agreement failures (exit 5): the records, then one record carrying the `error` object (docs/json.md).
     if (failures)
       out.push_back({{"type", "error"},
