@@ -59,6 +59,8 @@ class PackageReader {
 
  private:
   AlignedBytes read_stored(size_t index) const;
+  // Into `out` (resized to the stored size, its capacity reused).
+  void read_stored_into(size_t index, AlignedBytes& out) const;
   std::string path_;
   void check_header_and_toc();  // the constructor's checks (it closes fd_ when they throw)
   int fd_ = -1;

@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 
 #include "core/error.h"
 #include "core/input_file.h"
@@ -122,8 +123,14 @@ int64_t PackageReader::find(fmt::ChunkKind kind, uint64_t id) const {
 }
 
 AlignedBytes PackageReader::read_stored(size_t index) const {
+  AlignedBytes out;
+  read_stored_into(index, out);
+  return out;
+}
+
+void PackageReader::read_stored_into(size_t index, AlignedBytes& out) const {
   const fmt::TocEntry& e = toc_[index];
-  AlignedBytes out(e.stored_size);
+  out.resize(e.stored_size);
   if (!direct_) {
     size_t done = 0;
     while (done < out.size()) {
@@ -133,7 +140,7 @@ AlignedBytes PackageReader::read_stored(size_t index) const {
       if (n == 0) fail_invalid(chunk_label(e, index) + ": truncated file");
       done += size_t(n);
     }
-    return out;
+    return;
   }
   // O_DIRECT: aligned buffer, offset and length (the chunk starts on a 4 KiB boundary).
   const size_t len = (e.stored_size + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
@@ -152,7 +159,6 @@ AlignedBytes PackageReader::read_stored(size_t index) const {
   }
   if (e.stored_size) std::memcpy(out.data(), buf, e.stored_size);
   std::free(buf);
-  return out;
 }
 
 void PackageReader::verify(size_t index) const {
@@ -171,16 +177,24 @@ AlignedBytes PackageReader::read(size_t index) const {
 
 void PackageReader::read_into(size_t index, AlignedBytes& out) const {
   const fmt::TocEntry& e = toc_[index];
-  AlignedBytes stored = read_stored(index);
+  if (e.compression == uint32_t(fmt::Compression::kNone)) {
+    if (e.raw_size != e.stored_size) fail_invalid(chunk_label(e, index) + ": raw size differs from stored size");
+    read_stored_into(index, out);
+    const uint32_t c = crc32c(out.data(), out.size());
+    if (c != e.crc32c)
+      fail_invalid(chunk_label(e, index) + ": checksum mismatch (stored " + hex32(e.crc32c) + ", computed " + hex32(c) +
+                   "): corrupt chunk");
+    return;
+  }
+  // The compressed bytes go to a per-thread buffer that keeps its pages: a fresh one per chunk was faulted
+  // in and zeroed by the kernel each time (as much time as the copy from the page cache). It holds the
+  // largest chunk this thread has read, until the thread ends.
+  thread_local AlignedBytes stored;
+  read_stored_into(index, stored);
   const uint32_t c = crc32c(stored.data(), stored.size());
   if (c != e.crc32c)
     fail_invalid(chunk_label(e, index) + ": checksum mismatch (stored " + hex32(e.crc32c) + ", computed " + hex32(c) +
                  "): corrupt chunk");
-  if (e.compression == uint32_t(fmt::Compression::kNone)) {
-    if (e.raw_size != e.stored_size) fail_invalid(chunk_label(e, index) + ": raw size differs from stored size");
-    out.swap(stored);
-    return;
-  }
   if (e.compression != uint32_t(fmt::Compression::kZstd))
     fail_invalid(chunk_label(e, index) + ": unknown compression " + std::to_string(e.compression));
   // The frame's declared size must equal the TOC's raw size, and neither is believed before the bytes
@@ -198,8 +212,10 @@ void PackageReader::read_into(size_t index, AlignedBytes& out) const {
     fail_invalid(chunk_label(e, index) + ": raw_size " + std::to_string(e.raw_size) + " is more than " +
                  std::to_string(kMaxChunkRatio) + " times the " + std::to_string(e.stored_size) +
                  " stored bytes (the limit of formats/SPEC.md §3)");
-  ZSTD_DCtx* dctx = ZSTD_createDCtx();
-  if (!dctx) throw std::bad_alloc();
+  thread_local std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> ctx(ZSTD_createDCtx(), ZSTD_freeDCtx);
+  if (!ctx) throw std::bad_alloc();
+  ZSTD_DCtx* dctx = ctx.get();
+  ZSTD_DCtx_reset(dctx, ZSTD_reset_session_only);
   const size_t reuse = out.capacity();  // memory the caller already holds: no new commitment
   out.clear();
   ZSTD_inBuffer in{stored.data(), stored.size(), 0};
@@ -227,7 +243,6 @@ void PackageReader::read_into(size_t index, AlignedBytes& out) const {
       break;
     }
   }
-  ZSTD_freeDCtx(dctx);
   if (error.empty() && (done != e.raw_size || in.pos != in.size)) error = "short";
   if (!error.empty()) fail_invalid(chunk_label(e, index) + ": zstd decompression failed (" + error + ")");
   // Growing by doubling (a chunk over 16x its stored size) can leave up to twice the bytes allocated:
