@@ -415,6 +415,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({4, 8, 16}))->needs(convert_flag);
   app.add_option("--zstd-level", conv.zstd_level, "--convert: zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) + ")")
       ->check(CLI::Range(0, 22))->needs(convert_flag);
+  app.add_flag("--zstd-huffman-literals{false}", conv.zstd_raw_literals,
+               "--convert: Huffman-code zstd's literals in batching points and mesh segments too (as rtpack-convert)")
+      ->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
       ->check(CLI::PositiveNumber)->needs(convert_flag);
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})

@@ -62,6 +62,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"normal", "uv"}));
   app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) +
                                                  "; 6: 3.5-5 % smaller, chunks stage 1.2-1.5x slower; 19: about 25 % smaller, 15-20x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
+  bool huffman_literals = false;
+  app.add_flag("--zstd-huffman-literals", huffman_literals,
+               "Huffman-code zstd's literals in batching points and mesh segments too (default: raw there, 4 % larger, "
+               "decompressed about 1.4x faster when tracing out of core; docs/trace/budget.md)");
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
       ->check(CLI::PositiveNumber);
   bool no_dag = false;
@@ -118,6 +122,7 @@ int main(int argc, char** argv) {
     cs.chunk_target = chunk_target;
     cs.chunk_by = chunk_by;
     cs.zstd_level = zstd_level;
+    cs.zstd_raw_literals = !huffman_literals;
     cs.dag = !no_dag;
     cs.dag_resolution = dag_resolution;
     cs.dry_run = dry_run;

@@ -76,6 +76,7 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
   cv.leaf_width = leaf_width;
   cv.bvh.method = s.bvh_build == "split" ? BuildMethod::kSplit : BuildMethod::kCollapse;
   cv.zstd_level = s.zstd_level;
+  cv.zstd_raw_literals = s.zstd_raw_literals;
   cv.dag = s.dag;
   cv.voxel.resolution = s.dag_resolution;
   cv.progress = hooks.progress;
@@ -85,6 +86,7 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
                  {"options",
                   {{"bvh_width", s.width}, {"leaf_width", leaf_width}, {"bvh_build", s.bvh_build},
                    {"chunk_target", s.chunk_target}, {"chunk_by", s.chunk_by}, {"zstd_level", s.zstd_level},
+                   {"zstd_raw_literals", s.zstd_raw_literals},
                    {"subdivide", s.subdivide}, {"subdivide_to", s.subdivide_to}, {"weld", s.weld},
                    {"scene", scene.gltf_scene}, {"attributes", s.attributes}, {"dag", s.dag},
                    {"dag_resolution", s.dag_resolution}}}};

@@ -29,6 +29,7 @@ struct ConvertSettings {
   uint64_t chunk_target = 0;                 // 0: derived from the scene
   std::string chunk_by = "instanced";        // or "unique"
   int zstd_level = kDefaultZstdLevel;        // 0 = store
+  bool zstd_raw_literals = true;             // ConvertOptions::zstd_raw_literals
   bool dag = true;                           // culling DAGs
   uint32_t dag_resolution = 0;               // 0: per batching point
   bool dry_run = false;                      // stop after preparation

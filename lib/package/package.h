@@ -27,7 +27,9 @@ class PackageWriter {
   const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
   // The same in two steps, so compression can run on other threads: compress() is thread-safe
   // and deterministic (single-threaded zstd); add_packed() appends in call order.
-  static std::vector<uint8_t> compress(const void* data, size_t size, int level, fmt::Compression& used);
+  // raw_literals: zstd stores literals as they are, without Huffman coding (see ConvertOptions).
+  static std::vector<uint8_t> compress(const void* data, size_t size, int level, fmt::Compression& used,
+                                       bool raw_literals = false);
   const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
                                   fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of

@@ -355,7 +355,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                  }
                                                }
                                                p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
-                                                                                  o.zstd_level, p.comp);
+                                                                                  o.zstd_level, p.comp, o.zstd_raw_literals);
                                                if (!p.job.attr_raw.empty())
                                                  p.attr_stored = PackageWriter::compress(
                                                      p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);

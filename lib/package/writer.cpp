@@ -1,7 +1,9 @@
 // Streaming package writer: chunks go to an unnamed output file (core/output_file.h) as they come,
 // each zstd-compressed, CRC-32C checksummed and 4 KiB aligned; the TOC and header are written last;
 // the file appears at its path only once complete.
+#define ZSTD_STATIC_LINKING_ONLY
 #include <zstd.h>
+#include <memory>
 
 #include <cstring>
 
@@ -18,11 +20,22 @@ PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(pat
 PackageWriter::~PackageWriter() = default;
 
 void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { out_.write_at(offset, data, size); }
-std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used) {
+std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used,
+                                             bool raw_literals) {
   used = fmt::Compression::kNone;
   if (level > 0 && size > 0) {
     std::vector<uint8_t> packed(ZSTD_compressBound(size));
-    const size_t n = ZSTD_compress(packed.data(), packed.size(), data, size, level);
+    // One context per thread, reused: a fresh one per chunk allocated and cleared its tables every time.
+    thread_local std::unique_ptr<ZSTD_CCtx, size_t (*)(ZSTD_CCtx*)> ctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
+    if (!ctx) throw std::bad_alloc();
+    ZSTD_CCtx* cctx = ctx.get();
+    ZSTD_CCtx_reset(cctx, ZSTD_reset_session_and_parameters);
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level);
+    // ZSTD_c_literalCompressionMode is in zstd's experimental API (ZSTD_STATIC_LINKING_ONLY), stable in
+    // the shared library since 1.4.5 (Debian 12 ships 1.5.4); a library that refuses it leaves the
+    // default, which only makes the package a little smaller and its loads slower.
+    if (raw_literals) ZSTD_CCtx_setParameter(cctx, ZSTD_c_literalCompressionMode, ZSTD_ps_disable);
+    const size_t n = ZSTD_compress2(cctx, packed.data(), packed.size(), data, size);
     if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));
     if (n < size) {  // stored raw when compression does not help
       packed.resize(n);
