@@ -188,7 +188,9 @@ TEST(OutOfCore, CullingSavesLoadsAndKeepsTheHits) {
   EXPECT_EQ(first_difference(a, b), -1);
   EXPECT_GT(sa.culled_visits, 0u);
   EXPECT_EQ(sb.culled_visits, 0u);
-  EXPECT_EQ(sa.point_visits, sb.point_visits);
+  // Rays are queued at their next few unculled points at once (set_speculation), so culling changes how
+  // far each batch of a walk reaches, and the visit counts differ a little; fewer points are traced.
+  EXPECT_LT(sa.point_visits - sa.culled_visits, sb.point_visits);
   EXPECT_LT(sa.cache.loads, sb.cache.loads) << "culled rays must not make their batching points load";
   EXPECT_LT(sa.cache.bytes_read, sb.cache.bytes_read);
   std::printf("culling at a %llu-byte budget: %llu of %llu batching-point visits culled; %llu chunks loaded, %llu bytes "
@@ -201,6 +203,80 @@ TEST(OutOfCore, CullingSavesLoadsAndKeepsTheHits) {
 
 // Reading ahead on the I/O thread while a round traces: the same hits with it off, its chunks counted,
 // and the reserved bytes inside the budget (the cache's peak counts resident + in-flight bytes).
+// Queuing a ray at its next points at once (speculation) must give the one-point-at-a-time walk's answers
+// byte for byte, closest and any hits, at every depth, while a round's points serve the rays that reach
+// them later in their walks: fewer chunk loads under a budget that evicts.
+TEST(OutOfCore, SpeculationKeepsTheHitsAndSavesLoads) {
+  const fs::path dir = temp_dir("ooc_speculate");
+  for (const Sample& s : {samples()[0], samples()[1]}) {
+    const std::string pkg = (dir / (s.name + ".rtp")).string();
+    const Scene scene = convert(s, pkg, kDefaultZstdLevel, 400);
+    const PackageReader reader(pkg);
+    const auto in_core = load_package_in_core(reader);
+    const std::vector<fmt::Ray> rays = rays_for(scene, *in_core);
+    const uint64_t budget = std::max(minimum_budget(reader), on_demand_bytes(reader) / 10);
+    std::vector<fmt::Hit> one(rays.size()), got(rays.size());
+    std::vector<uint8_t> one_any(rays.size()), got_any(rays.size());
+    auto by_one = open_out_of_core(reader, budget);
+    by_one->set_speculation(1);
+    const OutOfCoreStats s1 = by_one->closest(rays.data(), one.data(), rays.size(), options());
+    by_one->any(rays.data(), one_any.data(), rays.size(), options());
+    for (uint32_t depth : {2u, 4u, kDefaultSpeculation, 64u}) {
+      auto t = open_out_of_core(reader, budget);
+      t->set_speculation(depth);
+      const OutOfCoreStats sd = t->closest(rays.data(), got.data(), rays.size(), options());
+      t->any(rays.data(), got_any.data(), rays.size(), options());
+      EXPECT_EQ(first_difference(one, got), -1) << s.name << ", depth " << depth;
+      EXPECT_EQ(first_difference(one_any, got_any), -1) << s.name << ", depth " << depth;
+      EXPECT_LE(sd.cache.peak_resident_bytes, budget);
+      EXPECT_GE(sd.point_visits, s1.point_visits) << "a deeper walk visits at least the points the one-by-one walk does";
+      if (depth == kDefaultSpeculation) {
+        EXPECT_LT(sd.cache.loads, s1.cache.loads) << s.name;
+        std::printf("%s, %llu-byte budget: %llu chunk loads one point at a time, %llu at depth %u (%llu vs %llu visits)\n",
+                    s.name.c_str(), (unsigned long long)budget, (unsigned long long)s1.cache.loads,
+                    (unsigned long long)sd.cache.loads, depth, (unsigned long long)s1.point_visits,
+                    (unsigned long long)sd.point_visits);
+      }
+    }
+    EXPECT_THROW(by_one->set_speculation(0), Error);
+    EXPECT_THROW(by_one->set_speculation(65), Error);
+  }
+  fs::remove_all(dir);
+}
+
+// The on-demand chunks are written with zstd's literals raw (ConvertOptions::zstd_raw_literals): the
+// decompressed chunks and so every answer are those of Huffman-coded literals, only the stored bytes differ.
+TEST(OutOfCore, RawLiteralsChangeOnlyTheStoredBytes) {
+  const fs::path dir = temp_dir("ooc_literals");
+  const Sample s = samples()[3];  // FlightHelmet: float-heavy leaf blocks
+  ConvertSettings cs;
+  cs.input = s.path;
+  cs.width = s.width;
+  std::vector<std::vector<AlignedBytes>> raw(2);
+  std::vector<uint64_t> point_stored(2, 0);
+  for (int huffman = 0; huffman < 2; ++huffman) {
+    cs.output = (dir / (huffman ? "huffman.rtp" : "raw.rtp")).string();
+    cs.zstd_raw_literals = !huffman;
+    convert_scene(cs);
+    const PackageReader reader(cs.output);
+    for (size_t i = 0; i < reader.toc().size(); ++i) {
+      raw[huffman].push_back(reader.read(i));
+      if (reader.toc()[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) point_stored[huffman] += reader.toc()[i].stored_size;
+    }
+  }
+  ASSERT_EQ(raw[0].size(), raw[1].size());
+  const PackageReader reader(cs.output);
+  for (size_t i = 0; i < raw[0].size(); ++i)  // the metadata records the option; every other chunk is the same
+    if (reader.toc()[i].kind != uint32_t(fmt::ChunkKind::kMetadata)) {
+      EXPECT_TRUE(raw[0][i] == raw[1][i]) << "chunk " << i;
+    }
+  EXPECT_GT(point_stored[1], 0u);
+  EXPECT_NE(point_stored[0], point_stored[1]) << "the setting must reach the batching points' zstd frames";
+  std::printf("FlightHelmet batching points: %llu bytes stored with raw literals, %llu Huffman-coded\n",
+              (unsigned long long)point_stored[0], (unsigned long long)point_stored[1]);
+  fs::remove_all(dir);
+}
+
 TEST(OutOfCore, PrefetchKeepsTheHitsAndTheBudget) {
   const fs::path dir = temp_dir("ooc_prefetch");
   const std::string pkg = (dir / "forest.rtp").string();

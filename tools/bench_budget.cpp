@@ -17,6 +17,7 @@
 
 #include "bench_convert.h"
 #include "core/error.h"
+#include "core/output_file.h"
 #include "core/progress.h"
 #include "package/convert.h"
 #include "reader/container.h"
@@ -43,6 +44,13 @@ CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg) {
   app.add_flag("--direct-io", cfg.direct_io, "--out-of-core: read chunks with O_DIRECT (the page cache does not hide the disk)")
       ->needs(ooc);
   app.add_flag("--prefetch", cfg.prefetch, "--out-of-core: read ahead on an I/O thread while a round traces")->needs(ooc);
+  app.add_option("--culling", cfg.culling, "--out-of-core: run with DAG culling on, off or both (default both)")
+      ->check(CLI::IsMember({"on", "off", "both"}))
+      ->needs(ooc);
+  app.add_option("--save-rays", cfg.save_rays,
+                 "--out-of-core: also write each kind's rays to PREFIX-KIND.rays (the ray-file format), to replay them "
+                 "with rtpack-trace PKG --rays FILE --memory-budget B")
+      ->needs(ooc);
   return ooc;
 }
 
@@ -96,6 +104,8 @@ int run_budget_bench(BudgetBenchConfig cfg) {
     g.seed = cfg.seed;
     g.closest = trace_in_core;
     const std::vector<fmt::Ray> rays = generate_rays(scene, kind, cfg.rays, g);
+    if (!cfg.save_rays.empty())
+      write_output_file(cfg.save_rays + "-" + ray_kind_name(kind) + ".rays", rays.data(), rays.size() * sizeof(fmt::Ray));
     std::vector<fmt::Hit> want(rays.size()), got(rays.size());
     trace_in_core(rays.data(), want.data(), rays.size());  // warm
     t0 = Clock::now();
@@ -110,6 +120,7 @@ int run_budget_bench(BudgetBenchConfig cfg) {
       const uint64_t budget = uint64_t(std::ceil(double(on_demand) * pct / 100.0));
       for (bool cull : {true, false}) {
         if (!cull && !in_core->has_dags()) continue;
+        if (cfg.culling != "both" && cull != (cfg.culling == "on")) continue;
         if (budget < minimum) {
           std::fprintf(out, "%-8s %6.0f%% %6s below the minimum budget: skipped\n", ray_kind_name(kind), pct, cull ? "on" : "off");
           continue;

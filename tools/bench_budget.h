@@ -24,11 +24,14 @@ struct BudgetBenchConfig {
   int threads = 0;  // 0: all
   bool direct_io = false;
   bool prefetch = false;  // --prefetch: read ahead on an I/O thread while a round traces
+  std::string culling = "both";  // --culling on|off|both
+  std::string save_rays;         // --save-rays PREFIX: PREFIX-KIND.rays (formats/ray_file.h) for rtpack-trace
   bool json = false;
   Isa isa = Isa::kScalar;
 };
 
-// Registers --out-of-core PKG (returned, for the caller's excludes), --budgets, --direct-io and --prefetch.
+// Registers --out-of-core PKG (returned, for the caller's excludes), --budgets, --direct-io, --prefetch,
+// --culling and --save-rays.
 CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg);
 
 // Prints the table (stdout, or stderr with --json, the records then on stdout). Returns the exit code:

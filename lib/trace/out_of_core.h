@@ -4,9 +4,9 @@
 // segments come through a ChunkCache under a byte budget. A ray walks the top level (parent pointers,
 // no stack) to its next batching point, is culled there by the point's DAG or queued at it, and
 // resumes its walk after the point has been traced. Points are processed in rounds, most rays first,
-// as many as the budget holds at once, all threads tracing them. Each ray waits at one point at a time
-// and visits points in the in-core order, so the hits are byte-identical to load_package_in_core()'s
-// for every budget, thread count and ray order.
+// as many as the budget holds at once, all threads tracing them. A ray is queued at its next few points
+// at once (set_speculation) and the answers are merged in walk order, so the hits are byte-identical to
+// load_package_in_core()'s for every budget, thread count, ray order and depth.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -17,6 +17,8 @@
 #include "trace/package_tracer.h"
 
 namespace rtp {
+
+inline constexpr uint32_t kDefaultSpeculation = 16;
 
 struct OutOfCoreStats : PackageTraceStats {
   uint64_t rounds = 0;              // scheduling rounds (a set of batching points made resident)
@@ -48,6 +50,12 @@ class OutOfCoreTracer {
   // the budget kept for them (default off: every chunk is read, in parallel, when its round starts; on
   // this project's 2-core machine reading ahead was slower, docs/trace/budget.md). Same hits either way.
   virtual void set_prefetch(bool on) = 0;
+  // How many batching points ahead a ray is queued at once for closest and any hits (1 .. 64, default
+  // kDefaultSpeculation): each traced with the tfar the ray had when queued, the answers merged by (t,
+  // walk order), so the hits are the same for every depth while the points of a round serve the rays
+  // that reach them later in their walks too (fewer reloads). Depth 1 is the one-point-at-a-time walk.
+  // Multi-hit always walks one point at a time.
+  virtual void set_speculation(uint32_t depth) = 0;
 };
 
 // The decompressed bytes of the chunks tracing reads on demand (batching points and mesh segments):
