@@ -188,9 +188,9 @@ TEST(OutOfCore, CullingSavesLoadsAndKeepsTheHits) {
   EXPECT_EQ(first_difference(a, b), -1);
   EXPECT_GT(sa.culled_visits, 0u);
   EXPECT_EQ(sb.culled_visits, 0u);
-  // Rays are queued at their next few unculled points at once (set_speculation), so culling changes how
-  // far each batch of a walk reaches, and the visit counts differ a little; fewer points are traced.
-  EXPECT_LT(sa.point_visits - sa.culled_visits, sb.point_visits);
+  // Culled points give no hit, so the walks are the same either way; the DAGs are tested where a point's
+  // queue is small enough that culling may spare its load (out_of_core.cpp, cull_small_queues).
+  EXPECT_EQ(sa.point_visits, sb.point_visits);
   EXPECT_LT(sa.cache.loads, sb.cache.loads) << "culled rays must not make their batching points load";
   EXPECT_LT(sa.cache.bytes_read, sb.cache.bytes_read);
   std::printf("culling at a %llu-byte budget: %llu of %llu batching-point visits culled; %llu chunks loaded, %llu bytes "

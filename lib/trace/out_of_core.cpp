@@ -237,6 +237,7 @@ class Batched final : public OutOfCoreTracer {
   struct Visit {
     uint32_t ray, walk;
     float tstart;
+    uint32_t dag_tested = 0;  // 1: its point's DAG kept it (cull_small_queues)
   };
   // Striped spin locks over the rays: visits of one ray to several points of a round may be traced at
   // once by different threads; each merges its answer under the ray's lock.
@@ -296,7 +297,7 @@ class Batched final : public OutOfCoreTracer {
       uint32_t c = 0;
       while (c < depth) {
         float tstart = 0.f;
-        const uint32_t p = advance(rays[i], tfar, pos[i], tstart, cull, ws);
+        const uint32_t p = advance(rays[i], tfar, pos[i], tstart, false, ws);  // DAGs: cull_small_queues
         if (p == kNone) {
           walk_over[i] = 1;
           break;
@@ -318,6 +319,45 @@ class Batched final : public OutOfCoreTracer {
       st.peak_ray_bytes = std::max(st.peak_ray_bytes, ray_bytes);
       return queued;
     };
+    // Molenaar 2019 §4.2 culls a ray at a batching point by the point's DAG so that the point need not be
+    // loaded for it. A point with more than a kernel block of rays is loaded anyway (some ray will pass its
+    // DAG), and there the DAG walk costs more than the BVH traversal it saves (docs/culling), so only the
+    // rays of points with at most kBlock waiting rays, not resident, are tested: culled visits leave the
+    // queue, and a point whose rays are all culled is never loaded. Culling never changes a hit.
+    PackageTraceStats cull_stats;
+    uint64_t waiting = 0;
+    auto cull_small_queues = [&] {
+      if (!cull || !res_.grids) return;
+      Moves& m = moves.local();
+      for (bool again = true; again;) {
+        again = false;
+        for (uint32_t p = 0; p < res_.n_points; ++p) {
+          std::vector<Visit>& q = queue[p];
+          if (q.empty() || q.size() > kBlock || point_resident(p)) continue;
+          size_t kept = 0;
+          for (Visit v : q) {
+            if (v.dag_tested) {
+              q[kept++] = v;
+              continue;
+            }
+            fmt::Ray local = rays[v.ray];
+            local.tnear = v.tstart;
+            local.tfar = walk_tfar[v.ray];
+            if (voxel::dag_enter(res_.grids[p], res_.dag, local)) {
+              v.tstart = local.tnear;
+              v.dag_tested = 1;
+              q[kept++] = v;
+              continue;
+            }
+            ++cull_stats.culled_visits;
+            if (--pending[v.ray] == 0 && !walk_over[v.ray] && !stopped(v.ray)) walk_ahead(v.ray, m, cull_stats);
+          }
+          q.resize(kept);
+        }
+        if (!m.empty()) again = true;
+        waiting = enqueue_moves();
+      }
+    };
     auto t0 = Clock::now();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& rg) {
       Moves& m = moves.local();
@@ -331,7 +371,8 @@ class Batched final : public OutOfCoreTracer {
         walk_ahead(uint32_t(i), m, ws);
       }
     });
-    uint64_t waiting = enqueue_moves();
+    waiting = enqueue_moves();
+    cull_small_queues();
     st.walk_seconds += seconds_since(t0);
     std::vector<uint32_t> order(res_.n_points);
     std::vector<uint8_t> in_round(r_.toc().size(), 0);  // chunks of the round being chosen
@@ -420,9 +461,14 @@ class Batched final : public OutOfCoreTracer {
           if (!queue[p].empty()) active.push_back(p);
       }
       cache_.release();
+      t0 = Clock::now();
+      cull_small_queues();
+      st.walk_seconds += seconds_since(t0);
       const uint64_t cache_now = cache_.stats().resident_bytes;
       st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + cache_now + st.peak_ray_bytes);
     }
+    st.point_visits += cull_stats.point_visits;
+    st.culled_visits += cull_stats.culled_visits;
     for (const PackageTraceStats& ws : walk_stats) {
       st.invalid_rays += ws.invalid_rays;
       st.point_visits += ws.point_visits;
@@ -441,6 +487,14 @@ class Batched final : public OutOfCoreTracer {
     st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + c.peak_resident_bytes + st.peak_ray_bytes);
     st.total_seconds = seconds_since(t_total);
     return st;
+  }
+
+  // True when the point's chunk and its mesh segments are in the cache (tracing it reads nothing).
+  bool point_resident(uint32_t p) const {
+    if (!cache_.resident(res_.layout.point_chunk[p])) return false;
+    for (uint32_t s : res_.layout.point_segments[p])
+      if (!cache_.resident(res_.layout.segment_chunk[s])) return false;
+    return true;
   }
 
   // Every chunk the cache loads passes the structural checks (check_chunks.h) before a ray reads it.
