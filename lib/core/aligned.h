@@ -15,7 +15,10 @@ namespace rtp {
 // this project's VM took as long as decompressing it (docs/trace/budget.md).
 inline constexpr size_t kHugeThreshold = size_t(4) << 20;
 void* allocate_large(size_t bytes);            // throws std::bad_alloc
+// Freed buffers stay mapped (up to 512 MiB, oldest unmapped first) for the next allocate_large, which
+// resizes one with mremap instead of faulting in fresh pages; release_kept_large() unmaps them all.
 void deallocate_large(void* p, size_t bytes);  // bytes: as given to allocate_large
+void release_kept_large();
 
 template <class T, size_t A = 64>
 struct AlignedAllocator {

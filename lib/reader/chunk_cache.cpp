@@ -2,8 +2,11 @@
 #include "reader/chunk_cache.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
+#include <numeric>
 #include <chrono>
 #include <exception>
 #include <thread>
@@ -168,11 +171,23 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
   }
   spare.clear();
   spare.shrink_to_fit();
-  tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
-    reader_.read_into(missing[k], loaded[k]);
-    on_load(missing[k], loaded[k]);
+  // Largest first, each worker taking the next chunk as it finishes one (greedy longest-processing-time
+  // order): a round loads a handful of chunks of 20-50 MB on few cores, and a big chunk started last left
+  // the other cores idle while it decompressed.
+  std::vector<size_t> by_size(missing.size());
+  std::iota(by_size.begin(), by_size.end(), size_t(0));
+  std::stable_sort(by_size.begin(), by_size.end(), [&](size_t a, size_t b) { return cost(missing[a]) > cost(missing[b]); });
+  std::atomic<size_t> next{0};
+  const size_t workers = std::min<size_t>(size_t(std::max(1, tbb::this_task_arena::max_concurrency())), missing.size());
+  tbb::parallel_for(size_t(0), workers, [&](size_t) {
+    for (size_t j = next++; j < by_size.size(); j = next++) {
+      const size_t k = by_size[j];
+      reader_.read_into(missing[k], loaded[k]);
+      on_load(missing[k], loaded[k]);
+    }
   }, tbb::simple_partitioner());
   stats_.load_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  release_kept_large();  // evicted buffers no load took: memory is back to what the budget counts
   for (size_t k = 0; k < missing.size(); ++k) insert(missing[k], std::move(loaded[k]), true);
   stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
 }
