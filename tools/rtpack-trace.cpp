@@ -93,6 +93,11 @@ int main(int argc, char** argv) {
   bool prefetch = false;
   app.add_flag("--prefetch", prefetch, "with --memory-budget: read the next round's likely chunks on an I/O thread while a "
                                        "round traces (same hits; off by default, see docs/trace/budget.md)");
+  uint32_t speculation = rtp::kDefaultSpeculation;
+  app.add_option("--speculation", speculation,
+                 "with --memory-budget: queue a ray at its next N batching points at once, 1..64 (same hits; default " +
+                     std::to_string(rtp::kDefaultSpeculation) + "; 1 walks one point at a time, docs/trace/budget.md)")
+      ->check(CLI::Range(1, 64));
   app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
   app.add_flag("--no-cull", no_cull, "do not test rays against the batching points' culling DAGs (same hits, slower)");
   app.add_flag("--json", json, "print the counts as JSON on stdout");
@@ -149,6 +154,7 @@ int main(int argc, char** argv) {
       budget = rtp::parse_memory_budget(budget_text, rtp::on_demand_bytes(reader));
       ooc = rtp::open_out_of_core(reader, budget);
       ooc->set_prefetch(prefetch);
+      ooc->set_speculation(speculation);
     } else {
       tracer = rtp::load_package_in_core(reader);
     }
