@@ -24,11 +24,12 @@ struct ConvertOptions {
   int leaf_width = 8;  // B: 4, 8 or 16 (combinations: see supported_widths())
   BuildOptions bvh;
   int zstd_level = kDefaultZstdLevel;
-  // Batching points and mesh segments (the chunks read while tracing) compressed with zstd's literals
-  // left raw, not Huffman-coded: on unique-50m's float-heavy leaf blocks this decompresses 1.4x faster
-  // (977 vs 694 MB/s, one 34 MB chunk, level 3) for 4 % more bytes, and compresses faster too; the
-  // out-of-core tracer's loads are mostly decompression (docs/trace/budget.md). --zstd-huffman-literals
-  // turns it off.
+  // Batching points and mesh segments (the chunks read while tracing) whose leaf blocks are more than
+  // half their bytes are compressed with zstd's literals left raw, not Huffman-coded: on unique-50m's
+  // float-heavy leaf blocks this decompresses 1.4x faster (977 vs 694 MB/s, one 34 MB chunk, level 3)
+  // for 4 % more bytes; the out-of-core tracer's loads are mostly decompression (docs/trace/budget.md).
+  // Chunks of instance BVHs and records keep Huffman literals (raw ones made forest-1m 7.5 % larger for
+  // nothing: its loads are small). --zstd-huffman-literals turns it off everywhere.
   bool zstd_raw_literals = true;
   bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
   voxel::VoxelOptions voxel;   // resolution (0 = per point), thin (tests only)
