@@ -1,10 +1,13 @@
 // The .rtp container alone: round trip, alignment, checksums, and every corruption → a clear error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <random>
 
+#include "core/aligned.h"
 #include "core/error.h"
 #include "gltf_builder.h"
 #include "package/package.h"
@@ -171,6 +174,34 @@ TEST_F(Container, CorruptChunkIsNamed) {
   f.close();
   const std::string msg = open_and_read_all(p);
   EXPECT_EQ(msg.rfind("batching point 2 (chunk #3 at offset " + std::to_string(off) + "): checksum mismatch", 0), 0u) << msg;
+}
+
+// Chunk buffers of 4 MiB and more are huge-page mappings kept after a free and resized for the next one
+// (core/aligned.cpp): every size must come back 2 MiB aligned, whole and writable, whether it is fresh,
+// a shrunk kept mapping or a grown one, and release_kept_large() must leave new allocations working.
+TEST(AlignedLarge, KeptMappingsComeBackWholeAndAligned) {
+  std::mt19937 rng(7);
+  std::vector<AlignedBytes> live;
+  for (int round = 0; round < 40; ++round) {
+    const size_t size = kHugeThreshold + size_t(rng() % (24u << 20));
+    AlignedBytes b(size);
+    ASSERT_EQ(reinterpret_cast<uintptr_t>(b.data()) % (size_t(2) << 20), 0u) << "round " << round;
+    const uint8_t tag = uint8_t(round + 1);
+    std::memset(b.data(), tag, b.size());
+    EXPECT_EQ(b[0], tag);
+    EXPECT_EQ(b[b.size() - 1], tag);
+    live.push_back(std::move(b));
+    if (rng() % 2) live.erase(live.begin() + std::ptrdiff_t(rng() % live.size()));  // freed: kept for reuse
+    if (round == 20) release_kept_large();
+  }
+  for (size_t i = 0; i < live.size(); ++i) {  // no later allocation took a live buffer's pages
+    const uint8_t tag = live[i][0];
+    EXPECT_EQ(std::count(live[i].begin(), live[i].end(), tag), std::ptrdiff_t(live[i].size())) << "buffer " << i;
+  }
+  live.clear();
+  release_kept_large();
+  AlignedBytes small(1000);  // below the threshold: the ordinary aligned heap
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(small.data()) % 64, 0u);
 }
 
 TEST_F(Container, NotAPackage) {

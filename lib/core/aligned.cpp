@@ -21,9 +21,16 @@ struct Kept {
   void* p;
   size_t len;
 };
-std::mutex g_mutex;
-std::vector<Kept> g_kept;
-size_t g_kept_bytes = 0;
+// Never destroyed: a worker thread's thread_local buffer may be freed after static destructors ran.
+struct KeptList {
+  std::mutex mutex;
+  std::vector<Kept> kept;
+  size_t bytes = 0;
+};
+KeptList& kept_list() {
+  static KeptList* list = new KeptList;
+  return *list;
+}
 
 void* fresh(size_t len) {
   // Map one huge page more than needed, then unmap the unaligned head and the rest of the tail.
@@ -44,23 +51,25 @@ void* allocate_large(size_t bytes) {
   const size_t len = round_up(bytes, kHuge);
   Kept k{nullptr, 0};
   {
-    std::lock_guard<std::mutex> lock(g_mutex);
+    KeptList& l = kept_list();
+    std::lock_guard<std::mutex> lock(l.mutex);
+    std::vector<Kept>& kept = l.kept;
     // The smallest kept mapping that holds `len`, else the largest (grown below).
-    size_t best = g_kept.size();
-    for (size_t i = 0; i < g_kept.size(); ++i) {
-      const bool fits = g_kept[i].len >= len;
-      if (best == g_kept.size()) {
+    size_t best = kept.size();
+    for (size_t i = 0; i < kept.size(); ++i) {
+      const bool fits = kept[i].len >= len;
+      if (best == kept.size()) {
         best = i;
         continue;
       }
-      const bool best_fits = g_kept[best].len >= len;
-      if (fits ? (!best_fits || g_kept[i].len < g_kept[best].len) : (!best_fits && g_kept[i].len > g_kept[best].len)) best = i;
+      const bool best_fits = kept[best].len >= len;
+      if (fits ? (!best_fits || kept[i].len < kept[best].len) : (!best_fits && kept[i].len > kept[best].len)) best = i;
     }
-    if (best != g_kept.size()) {
-      k = g_kept[best];
-      g_kept[best] = g_kept.back();
-      g_kept.pop_back();
-      g_kept_bytes -= k.len;
+    if (best != kept.size()) {
+      k = kept[best];
+      kept[best] = kept.back();
+      kept.pop_back();
+      l.bytes -= k.len;
     }
   }
   if (!k.p) return fresh(len);
@@ -79,21 +88,23 @@ void* allocate_large(size_t bytes) {
 
 void deallocate_large(void* p, size_t bytes) {
   const size_t len = round_up(bytes, kHuge);
-  std::lock_guard<std::mutex> lock(g_mutex);
-  g_kept.push_back({p, len});
-  g_kept_bytes += len;
-  while (g_kept_bytes > kKeepBytes) {  // oldest first
-    ::munmap(g_kept.front().p, g_kept.front().len);
-    g_kept_bytes -= g_kept.front().len;
-    g_kept.erase(g_kept.begin());
+  KeptList& l = kept_list();
+  std::lock_guard<std::mutex> lock(l.mutex);
+  l.kept.push_back({p, len});
+  l.bytes += len;
+  while (l.bytes > kKeepBytes) {  // oldest first
+    ::munmap(l.kept.front().p, l.kept.front().len);
+    l.bytes -= l.kept.front().len;
+    l.kept.erase(l.kept.begin());
   }
 }
 
 void release_kept_large() {
-  std::lock_guard<std::mutex> lock(g_mutex);
-  for (const Kept& k : g_kept) ::munmap(k.p, k.len);
-  g_kept.clear();
-  g_kept_bytes = 0;
+  KeptList& l = kept_list();
+  std::lock_guard<std::mutex> lock(l.mutex);
+  for (const Kept& k : l.kept) ::munmap(k.p, k.len);
+  l.kept.clear();
+  l.bytes = 0;
 }
 
 }  // namespace rtp
