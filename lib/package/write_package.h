@@ -14,9 +14,12 @@
 
 namespace rtp {
 
-// The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd): of the
-// levels within 6 % of level 9's bytes on every scene, level 3 has the fastest chunks stage (about half
-// of level 9's, 0.7-0.8x level 6's); level 6 stores 3.5-5 % less, level 1 16-24 % more.
+// The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd) when every
+// chunk had Huffman-coded literals: of the levels within 6 % of level 9's bytes on every scene, level 3
+// had the fastest chunks stage (about half of level 9's). With raw literals in the leaf-block chunks,
+// level 3 stores 6.4-6.7 % more than level 9 and the chart's rule now picks level 4 (1.5 % smaller, the
+// same chunks-stage time within this VM's noise); the default stays 3 until the level is chosen again
+// with out-of-core load times in the chart (issue 12).
 inline constexpr int kDefaultZstdLevel = 3;
 
 struct ConvertOptions {
