@@ -204,6 +204,32 @@ TEST(AlignedLarge, KeptMappingsComeBackWholeAndAligned) {
   EXPECT_EQ(reinterpret_cast<uintptr_t>(small.data()) % 64, 0u);
 }
 
+// A freed large buffer's pages move into the next large buffers (mremap), whatever their sizes: the
+// bytes left in them are the old ones (a fresh page would read as zeros), and pieces of two freed
+// buffers fill one larger buffer.
+TEST(AlignedLarge, FreedPagesMoveIntoTheNextBuffers) {
+  release_kept_large();
+  constexpr size_t kMiB = size_t(1) << 20;
+  {
+    AlignedBytes a(10 * kMiB), b(6 * kMiB);
+    std::memset(a.data(), 0xA1, a.size());
+    std::memset(b.data(), 0xB2, b.size());
+  }  // freed: b then a are kept (a the most recent)
+  AlignedBytes big(16 * kMiB);  // a's 10 MiB first, then b's 6
+  EXPECT_EQ(std::count(big.begin(), big.begin() + 10 * kMiB, uint8_t(0xA1)), std::ptrdiff_t(10 * kMiB));
+  EXPECT_EQ(std::count(big.begin() + 10 * kMiB, big.end(), uint8_t(0xB2)), std::ptrdiff_t(6 * kMiB));
+  std::memset(big.data(), 0xC3, big.size());
+  big = AlignedBytes();  // freed: 16 MiB kept
+  AlignedBytes head(6 * kMiB), rest(10 * kMiB);  // a larger kept mapping serves two smaller buffers
+  EXPECT_EQ(std::count(head.begin(), head.end(), uint8_t(0xC3)), std::ptrdiff_t(head.size()));
+  EXPECT_EQ(std::count(rest.begin(), rest.end(), uint8_t(0xC3)), std::ptrdiff_t(rest.size()));
+  std::memset(head.data(), 1, head.size());  // still two separate buffers
+  EXPECT_EQ(std::count(rest.begin(), rest.end(), uint8_t(0xC3)), std::ptrdiff_t(rest.size()));
+  release_kept_large();
+  AlignedBytes after(8 * kMiB);  // nothing kept: fresh, zero pages
+  EXPECT_EQ(std::count(after.begin(), after.end(), uint8_t(0)), std::ptrdiff_t(after.size()));
+}
+
 TEST_F(Container, NotAPackage) {
   std::ofstream(dir / "x.rtp", std::ios::binary) << std::string(8192, 'x');
   EXPECT_EQ(open_and_read_all((dir / "x.rtp").string()), "not an rtpack package (bad magic)");

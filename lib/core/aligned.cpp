@@ -1,5 +1,5 @@
 // Large buffers on transparent huge pages (see aligned.h): mmap, trimmed to a 2 MiB boundary, madvise;
-// freed mappings kept a moment for the next large allocation (resized with mremap, pages kept).
+// freed mappings kept a moment, their pages moved into the next large allocations (mremap).
 #include "core/aligned.h"
 
 #include <sys/mman.h>
@@ -45,45 +45,38 @@ void* fresh(size_t len) {
   ::madvise(p, len, MADV_HUGEPAGE);  // advice only: without THP the pages are 4 KiB, nothing else changes
   return p;
 }
+
+// Moves kept pages into [base, base + len) front to back, one 2 MiB step per mremap (a step never spans
+// two mappings: a buffer filled from several kept ones is several mappings). mremap moves the page
+// tables, not the bytes: the pages come without a fault or a zeroing, whatever sizes the old and the
+// new buffers have (a kept mapping larger than the request gives its head and stays kept for the rest).
+void fill_from_kept(char* base, size_t len) {
+  KeptList& l = kept_list();
+  std::lock_guard<std::mutex> lock(l.mutex);
+  for (size_t filled = 0; filled < len && !l.kept.empty();) {
+    Kept& k = l.kept.back();  // the most recently freed: its pages the likeliest still in cache
+    char* src = static_cast<char*>(k.p);
+    if (::mremap(src, kHuge, kHuge, MREMAP_MAYMOVE | MREMAP_FIXED, base + filled) == MAP_FAILED) {
+      // The target may be unmapped by a failed move: map it anew (fresh pages), drop the source step.
+      if (::mmap(base + filled, kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_FIXED, -1, 0) == MAP_FAILED)
+        throw std::bad_alloc();
+      ::madvise(base + filled, kHuge, MADV_HUGEPAGE);
+      ::munmap(src, kHuge);
+    }
+    filled += kHuge;
+    k.p = src + kHuge;
+    k.len -= kHuge;
+    l.bytes -= kHuge;
+    if (k.len == 0) l.kept.pop_back();
+  }
+}
 }  // namespace
 
 void* allocate_large(size_t bytes) {
   const size_t len = round_up(bytes, kHuge);
-  Kept k{nullptr, 0};
-  {
-    KeptList& l = kept_list();
-    std::lock_guard<std::mutex> lock(l.mutex);
-    std::vector<Kept>& kept = l.kept;
-    // The smallest kept mapping that holds `len`, else the largest (grown below).
-    size_t best = kept.size();
-    for (size_t i = 0; i < kept.size(); ++i) {
-      const bool fits = kept[i].len >= len;
-      if (best == kept.size()) {
-        best = i;
-        continue;
-      }
-      const bool best_fits = kept[best].len >= len;
-      if (fits ? (!best_fits || kept[i].len < kept[best].len) : (!best_fits && kept[i].len > kept[best].len)) best = i;
-    }
-    if (best != kept.size()) {
-      k = kept[best];
-      kept[best] = kept.back();
-      kept.pop_back();
-      l.bytes -= k.len;
-    }
-  }
-  if (!k.p) return fresh(len);
-  if (k.len >= len) {
-    if (k.len > len) ::munmap(static_cast<char*>(k.p) + len, k.len - len);  // shrink in place
-    return k.p;
-  }
-  void* q = ::mremap(k.p, k.len, len, MREMAP_MAYMOVE);  // grow: the old pages move along, only the tail is new
-  if (q == MAP_FAILED) {
-    ::munmap(k.p, k.len);
-    return fresh(len);
-  }
-  ::madvise(q, len, MADV_HUGEPAGE);
-  return q;
+  void* p = fresh(len);  // address space only: no page is touched yet
+  fill_from_kept(static_cast<char*>(p), len);
+  return p;
 }
 
 void deallocate_large(void* p, size_t bytes) {

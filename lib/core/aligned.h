@@ -15,8 +15,9 @@ namespace rtp {
 // this project's VM took as long as decompressing it (docs/trace/budget.md).
 inline constexpr size_t kHugeThreshold = size_t(4) << 20;
 void* allocate_large(size_t bytes);            // throws std::bad_alloc
-// Freed buffers stay mapped (up to 512 MiB, oldest unmapped first) for the next allocate_large, which
-// resizes one with mremap instead of faulting in fresh pages; release_kept_large() unmaps them all.
+// Freed buffers stay mapped (up to 512 MiB, oldest unmapped first): the next allocate_large moves their
+// pages into the new buffer 2 MiB at a time (mremap) instead of faulting in and zeroing fresh ones, of
+// any sizes; release_kept_large() unmaps what is left.
 void deallocate_large(void* p, size_t bytes);  // bytes: as given to allocate_large
 void release_kept_large();
 
