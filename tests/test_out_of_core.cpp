@@ -250,36 +250,53 @@ TEST(OutOfCore, SpeculationKeepsTheHitsAndSavesLoads) {
   fs::remove_all(dir);
 }
 
-// The on-demand chunks are written with zstd's literals raw (ConvertOptions::zstd_raw_literals): the
-// decompressed chunks and so every answer are those of Huffman-coded literals, only the stored bytes differ.
-TEST(OutOfCore, RawLiteralsChangeOnlyTheStoredBytes) {
+// The on-demand chunks are written with zstd's literals raw (ConvertOptions::zstd_raw_literals) and a
+// longer shortest match (zstd_leaf_min_match): the decompressed chunks and so every answer are those of
+// Huffman-coded literals and the level's own matches; only the stored bytes differ, and each setting
+// reaches the batching points' frames.
+TEST(OutOfCore, LeafFrameSettingsChangeOnlyTheStoredBytes) {
   const fs::path dir = temp_dir("ooc_literals");
   const Sample s = samples()[3];  // FlightHelmet: float-heavy leaf blocks
+  struct Variant {
+    const char* name;
+    bool raw_literals;
+    int min_match;
+  };
+  const Variant variants[] = {{"default", true, kDefaultLeafMinMatch}, {"huffman", false, kDefaultLeafMinMatch},
+                              {"level's matches", true, 0}, {"min match 4", true, 4}};
   ConvertSettings cs;
   cs.input = s.path;
   cs.width = s.width;
-  std::vector<std::vector<AlignedBytes>> raw(2);
-  std::vector<uint64_t> point_stored(2, 0);
-  for (int huffman = 0; huffman < 2; ++huffman) {
-    cs.output = (dir / (huffman ? "huffman.rtp" : "raw.rtp")).string();
-    cs.zstd_raw_literals = !huffman;
+  std::vector<std::vector<AlignedBytes>> raw;
+  std::vector<uint64_t> point_stored;
+  for (const Variant& v : variants) {
+    cs.output = (dir / (std::to_string(raw.size()) + ".rtp")).string();
+    cs.zstd_raw_literals = v.raw_literals;
+    cs.zstd_leaf_min_match = v.min_match;
     convert_scene(cs);
     const PackageReader reader(cs.output);
+    raw.emplace_back();
+    point_stored.push_back(0);
     for (size_t i = 0; i < reader.toc().size(); ++i) {
-      raw[huffman].push_back(reader.read(i));
-      if (reader.toc()[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) point_stored[huffman] += reader.toc()[i].stored_size;
+      raw.back().push_back(reader.read(i));
+      if (reader.toc()[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) point_stored.back() += reader.toc()[i].stored_size;
     }
+    std::printf("FlightHelmet batching points, %s: %llu bytes stored\n", v.name, (unsigned long long)point_stored.back());
   }
-  ASSERT_EQ(raw[0].size(), raw[1].size());
   const PackageReader reader(cs.output);
-  for (size_t i = 0; i < raw[0].size(); ++i)  // the metadata records the option; every other chunk is the same
-    if (reader.toc()[i].kind != uint32_t(fmt::ChunkKind::kMetadata)) {
-      EXPECT_TRUE(raw[0][i] == raw[1][i]) << "chunk " << i;
-    }
-  EXPECT_GT(point_stored[1], 0u);
-  EXPECT_NE(point_stored[0], point_stored[1]) << "the setting must reach the batching points' zstd frames";
-  std::printf("FlightHelmet batching points: %llu bytes stored with raw literals, %llu Huffman-coded\n",
-              (unsigned long long)point_stored[0], (unsigned long long)point_stored[1]);
+  EXPECT_GT(point_stored[0], 0u);
+  for (size_t k = 1; k < raw.size(); ++k) {
+    ASSERT_EQ(raw[0].size(), raw[k].size()) << variants[k].name;
+    for (size_t i = 0; i < raw[0].size(); ++i)  // the metadata records the options; every other chunk is the same
+      if (reader.toc()[i].kind != uint32_t(fmt::ChunkKind::kMetadata)) {
+        EXPECT_TRUE(raw[0][i] == raw[k][i]) << variants[k].name << ", chunk " << i;
+      }
+    EXPECT_NE(point_stored[0], point_stored[k]) << variants[k].name << ": the setting must reach the batching points' zstd frames";
+  }
+  cs.zstd_leaf_min_match = 9;  // zstd's range is 3..7: refused, not ignored
+  cs.output = (dir / "bad.rtp").string();
+  EXPECT_THROW(convert_scene(cs), Error);
+  EXPECT_FALSE(fs::exists(cs.output));
   fs::remove_all(dir);
 }
 

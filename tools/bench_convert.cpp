@@ -112,6 +112,7 @@ ConvertRun convert_once(const ConvertBenchConfig& cfg, const std::string& output
   cs.chunk_target = cfg.chunk_target;
   cs.zstd_level = cfg.zstd_level;
   cs.zstd_raw_literals = cfg.zstd_raw_literals;
+  cs.zstd_leaf_min_match = cfg.zstd_leaf_min_match;
   ConvertHooks hooks;
   hooks.stage = [&](const std::string& name, bool counts) { progress.stage(label + name, counts); };
   hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
@@ -230,7 +231,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"bvh_width", cfg.bvh_width},
                 {"leaf_width", leaf_width},
                 {"zstd_level", cfg.zstd_level},
-                {"zstd_raw_literals", cfg.zstd_raw_literals},
+                {"zstd_raw_literals", cfg.zstd_raw_literals}, {"zstd_leaf_min_match", cfg.zstd_leaf_min_match},
                 {"sections", sections},
                 {"sections_stored_bytes", sections_stored},
                 {"container_bytes", container},

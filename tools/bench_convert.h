@@ -18,6 +18,7 @@ struct ConvertBenchConfig {
   int bvh_width = 8;          // leaf width = W, 8 for W = 16 (rtpack-convert's default)
   int zstd_level = kDefaultZstdLevel;
   bool zstd_raw_literals = true;  // --zstd-huffman-literals: false
+  int zstd_leaf_min_match = kDefaultLeafMinMatch;  // --zstd-leaf-min-match
   uint64_t chunk_target = 0;  // 0 = derived from the scene
   int threads = 0;            // 0 = all hardware threads
   int reps = 3;               // best of reps after one warm-up (convert and Embree alike)

@@ -418,6 +418,9 @@ int main(int argc, char** argv) {
   app.add_flag("--zstd-huffman-literals{false}", conv.zstd_raw_literals,
                "--convert: Huffman-code zstd's literals in batching points and mesh segments too (as rtpack-convert)")
       ->needs(convert_flag);
+  app.add_option("--zstd-leaf-min-match", conv.zstd_leaf_min_match,
+                 "--convert: zstd's shortest match in batching points and mesh segments, 3..7 or 0 for the level's own (as rtpack-convert)")
+      ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}))->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
       ->check(CLI::PositiveNumber)->needs(convert_flag);
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})

@@ -77,6 +77,7 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
   cv.bvh.method = s.bvh_build == "split" ? BuildMethod::kSplit : BuildMethod::kCollapse;
   cv.zstd_level = s.zstd_level;
   cv.zstd_raw_literals = s.zstd_raw_literals;
+  cv.zstd_leaf_min_match = s.zstd_leaf_min_match;
   cv.dag = s.dag;
   cv.voxel.resolution = s.dag_resolution;
   cv.progress = hooks.progress;
@@ -86,7 +87,7 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
                  {"options",
                   {{"bvh_width", s.width}, {"leaf_width", leaf_width}, {"bvh_build", s.bvh_build},
                    {"chunk_target", s.chunk_target}, {"chunk_by", s.chunk_by}, {"zstd_level", s.zstd_level},
-                   {"zstd_raw_literals", s.zstd_raw_literals},
+                   {"zstd_raw_literals", s.zstd_raw_literals}, {"zstd_leaf_min_match", s.zstd_leaf_min_match},
                    {"subdivide", s.subdivide}, {"subdivide_to", s.subdivide_to}, {"weld", s.weld},
                    {"scene", scene.gltf_scene}, {"attributes", s.attributes}, {"dag", s.dag},
                    {"dag_resolution", s.dag_resolution}}}};

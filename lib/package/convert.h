@@ -30,6 +30,7 @@ struct ConvertSettings {
   std::string chunk_by = "instanced";        // or "unique"
   int zstd_level = kDefaultZstdLevel;        // 0 = store
   bool zstd_raw_literals = true;             // ConvertOptions::zstd_raw_literals
+  int zstd_leaf_min_match = kDefaultLeafMinMatch;  // ConvertOptions::zstd_leaf_min_match
   bool dag = true;                           // culling DAGs
   uint32_t dag_resolution = 0;               // 0: per batching point
   bool dry_run = false;                      // stop after preparation

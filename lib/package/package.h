@@ -27,9 +27,10 @@ class PackageWriter {
   const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
   // The same in two steps, so compression can run on other threads: compress() is thread-safe
   // and deterministic (single-threaded zstd); add_packed() appends in call order.
-  // raw_literals: zstd stores literals as they are, without Huffman coding (see ConvertOptions).
+  // raw_literals: zstd stores literals as they are, without Huffman coding; min_match > 0: zstd's
+  // shortest match (3..7) instead of the level's own (see ConvertOptions).
   static std::vector<uint8_t> compress(const void* data, size_t size, int level, fmt::Compression& used,
-                                       bool raw_literals = false);
+                                       bool raw_literals = false, int min_match = 0);
   const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
                                   fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of

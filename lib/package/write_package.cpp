@@ -356,9 +356,10 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                }
                                                // Raw literals where leaf blocks are most of the chunk: their floats
                                                // are what Huffman coding barely shrinks and slowly decodes.
-                                               const bool raw_literals = o.zstd_raw_literals && 2 * p.job.block_bytes > p.job.raw.size();
-                                               p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(),
-                                                                                  o.zstd_level, p.comp, raw_literals);
+                                               const bool leafy = 2 * p.job.block_bytes > p.job.raw.size();
+                                               p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(), o.zstd_level, p.comp,
+                                                                                  o.zstd_raw_literals && leafy,
+                                                                                  leafy ? o.zstd_leaf_min_match : 0);
                                                if (!p.job.attr_raw.empty())
                                                  p.attr_stored = PackageWriter::compress(
                                                      p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);

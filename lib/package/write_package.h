@@ -21,6 +21,12 @@ namespace rtp {
 // same chunks-stage time within this VM's noise); the default stays 3 until the level is chosen again
 // with out-of-core load times in the chart (issue 12).
 inline constexpr int kDefaultZstdLevel = 3;
+// zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
+// choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
+// sequence to decode. On unique-50m's batching points (232 MB, one thread, raw literals): 5 → ratio
+// 1.840 at 1311 MB/s decompressed, 6 → 1.634 at 1640 MB/s, 7 → 1.585 at 1941 MB/s; out of core at a
+// 10 % budget that is the load stage's main cost (docs/trace/budget.md, docs/package/zstd.md).
+inline constexpr int kDefaultLeafMinMatch = 7;
 
 struct ConvertOptions {
   int width = 8;       // W: 4, 8 or 16
@@ -34,6 +40,9 @@ struct ConvertOptions {
   // Chunks of instance BVHs and records keep Huffman literals (raw ones made forest-1m 7.5 % larger for
   // nothing: its loads are small). --zstd-huffman-literals turns it off everywhere.
   bool zstd_raw_literals = true;
+  // The same chunks' shortest zstd match (3..7; 0: the level's own, 5 at level 3): 16 % more bytes in
+  // them, decompressed 1.5x faster (kDefaultLeafMinMatch). --zstd-leaf-min-match 0 restores the level's.
+  int zstd_leaf_min_match = kDefaultLeafMinMatch;
   bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
   voxel::VoxelOptions voxel;   // resolution (0 = per point), thin (tests only)
   nlohmann::json metadata = nlohmann::json::object();  // merged into the metadata chunk

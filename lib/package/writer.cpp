@@ -21,7 +21,7 @@ PackageWriter::~PackageWriter() = default;
 
 void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { out_.write_at(offset, data, size); }
 std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used,
-                                             bool raw_literals) {
+                                             bool raw_literals, int min_match) {
   used = fmt::Compression::kNone;
   if (level > 0 && size > 0) {
     std::vector<uint8_t> packed(ZSTD_compressBound(size));
@@ -35,6 +35,10 @@ std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int 
     // the shared library since 1.4.5 (Debian 12 ships 1.5.4); a library that refuses it leaves the
     // default, which only makes the package a little smaller and its loads slower.
     if (raw_literals) ZSTD_CCtx_setParameter(cctx, ZSTD_c_literalCompressionMode, ZSTD_ps_disable);
+    if (min_match > 0) {
+      const size_t r = ZSTD_CCtx_setParameter(cctx, ZSTD_c_minMatch, min_match);
+      if (ZSTD_isError(r)) throw Error(ExitCode::kUsage, "zstd minimum match " + std::to_string(min_match) + ": " + ZSTD_getErrorName(r));
+    }
     const size_t n = ZSTD_compress2(cctx, packed.data(), packed.size(), data, size);
     if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));
     if (n < size) {  // stored raw when compression does not help
