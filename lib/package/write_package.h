@@ -16,10 +16,10 @@ namespace rtp {
 
 // The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd) when every
 // chunk had Huffman-coded literals: of the levels within 6 % of level 9's bytes on every scene, level 3
-// had the fastest chunks stage (about half of level 9's). With raw literals in the leaf-block chunks,
-// level 3 stores 6.4-6.7 % more than level 9 and the chart's rule now picks level 4 (1.5 % smaller, the
-// same chunks-stage time within this VM's noise); the default stays 3 until the level is chosen again
-// with out-of-core load times in the chart (issue 12).
+// had the fastest chunks stage (about half of level 9's). With raw literals and a minimum match of 7 in
+// the leaf-block chunks, level 3 stores 12-14 % more than level 9 and the chart's rule picks level 6
+// (chunks stage 1.2-1.4x level 3's); the default stays 3, the faster convert (issue 12's goal), whose
+// loads out of core are as fast.
 inline constexpr int kDefaultZstdLevel = 3;
 // zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
 // choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
