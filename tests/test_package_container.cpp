@@ -49,6 +49,15 @@ TEST_F(Container, Crc32cMatchesKnownValueAndPortablePath) {
   EXPECT_EQ(crc32c(s, 9), 0xE3069283u);  // the standard CRC-32C check value
   const auto v = pattern(10007, 9);
   EXPECT_EQ(crc32c(v.data(), v.size()), crc32c_portable(v.data(), v.size()));
+  // Inputs long enough for the three interleaved streams (3 x 32 KiB steps), at every remainder around
+  // a step, from unaligned starts, and continued from an earlier CRC.
+  const auto big = pattern(1 << 20, 3);
+  for (size_t size : {size_t(98303), size_t(98304), size_t(98305), size_t(196607), size_t(196615), size_t(1 << 20) - 5})
+    for (size_t start : {size_t(0), size_t(1), size_t(5)}) {
+      EXPECT_EQ(crc32c(big.data() + start, size), crc32c_portable(big.data() + start, size)) << size << " from " << start;
+      const uint32_t head = crc32c(big.data() + start, 1000);
+      EXPECT_EQ(crc32c(big.data() + start + 1000, size - 1000, head), crc32c_portable(big.data() + start, size)) << size;
+    }
 }
 
 TEST_F(Container, RoundTripAlignedAndNoTemporaryLeft) {
