@@ -23,12 +23,19 @@ AlignedBytes ChunkBuilder::finish() const {
     table.push_back(e);
     off = align(off + s.bytes.size());
   }
-  AlignedBytes out(off, 0);
+  // Not zero-filled and then overwritten (a convert spent 3 % of its time in that memset): each byte is
+  // written once, the padding to every 64-byte boundary as zeros (the package's bytes are deterministic).
+  AlignedBytes out(off);
   const fmt::ChunkHeader h{fmt::kChunkMagic, kind_, uint32_t(sections_.size()), 0};
   std::memcpy(out.data(), &h, sizeof h);
   if (!table.empty()) std::memcpy(out.data() + sizeof h, table.data(), table.size() * sizeof(fmt::SectionEntry));
-  for (size_t i = 0; i < sections_.size(); ++i)
+  size_t written = sizeof h + table.size() * sizeof(fmt::SectionEntry);
+  for (size_t i = 0; i < sections_.size(); ++i) {
+    std::memset(out.data() + written, 0, table[i].offset - written);
     if (!sections_[i].bytes.empty()) std::memcpy(out.data() + table[i].offset, sections_[i].bytes.data(), sections_[i].bytes.size());
+    written = table[i].offset + sections_[i].bytes.size();
+  }
+  std::memset(out.data() + written, 0, out.size() - written);
   return out;
 }
 
