@@ -149,9 +149,9 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
   if (pinned + incoming > budget_)
     throw Error(ExitCode::kUsage, "memory budget of " + std::to_string(budget_) + " bytes is too small: this round needs " +
                                       std::to_string(pinned + incoming) + " bytes of chunks at once");
-  // The evicted chunks' buffers take the new ones (the smallest that fits, at most 1/kSlack larger): their
-  // pages are mapped already, where a fresh buffer of megabytes is faulted in and zeroed page by page.
-  // Assigned before the reads, and the unused ones freed, so that memory never holds both.
+  // The evicted chunks' buffers take the new ones (the smallest that fits, at most 1/kSlack larger) as they
+  // are; the unused ones are freed before the reads, and allocate_large moves their pages into the new
+  // buffers (core/aligned.h), so memory never holds both and no page is zeroed again.
   std::vector<AlignedBytes> spare;
   evict_until(incoming, &spare);
   if (missing.empty()) return;
