@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "gltf_builder.h"
 #include "package/package.h"
+#include "reader/chunk_io.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
@@ -242,6 +243,37 @@ TEST(AlignedLarge, FreedPagesMoveIntoTheNextBuffers) {
 TEST_F(Container, NotAPackage) {
   std::ofstream(dir / "x.rtp", std::ios::binary) << std::string(8192, 'x');
   EXPECT_EQ(open_and_read_all((dir / "x.rtp").string()), "not an rtpack package (bad magic)");
+}
+
+// ChunkBuilder borrows its sections and gathers one from several arrays: the chunk equals the one built
+// from the concatenation, whatever buffer it is finished into (a reused one keeps no old bytes).
+TEST(ChunkBuilder, GatheredSectionsEqualTheConcatenationInAnyBuffer) {
+  const std::vector<uint32_t> a = {1, 2, 3}, b = {}, c = {4, 5, 6, 7, 8}, whole = {1, 2, 3, 4, 5, 6, 7, 8};
+  const std::vector<uint64_t> other = {0x0123456789a0cdefull, 42};  // no 0xAB byte (see below)
+  ChunkBuilder gathered{7};
+  gathered.add(fmt::SectionType::kGlobalIds, other);
+  gathered.begin_section(fmt::SectionType::kMeshSlots, sizeof(uint32_t));
+  for (const auto* v : {&a, &b, &c}) gathered.append_to_section(v->data(), v->size());
+  ChunkBuilder concatenated{7};
+  concatenated.add(fmt::SectionType::kGlobalIds, other);
+  concatenated.add(fmt::SectionType::kMeshSlots, whole);
+  const AlignedBytes want = concatenated.finish();
+  EXPECT_EQ(gathered.size(), want.size());
+  AlignedBytes reused(3 * want.size());
+  std::memset(reused.data(), 0xAB, reused.size());  // a larger chunk's bytes were here
+  gathered.finish_into(reused);
+  ASSERT_EQ(reused.size(), want.size());
+  EXPECT_EQ(std::memcmp(reused.data(), want.data(), want.size()), 0);
+  for (size_t i = 0; i < reused.size(); ++i) ASSERT_NE(reused[i], 0xAB) << "old byte at " << i;  // padding zeroed
+  ChunkView v(reused.data(), reused.size(), 7, "gathered");
+  uint64_t n = 0;
+  const uint32_t* slots = v.get<uint32_t>(fmt::SectionType::kMeshSlots, n);
+  ASSERT_EQ(n, whole.size());
+  EXPECT_TRUE(std::equal(whole.begin(), whole.end(), slots));
+  EXPECT_EQ(v.copy<uint64_t>(fmt::SectionType::kGlobalIds), other);
+
+  ChunkBuilder none{1};
+  EXPECT_THROW(none.append_to_section(a.data(), a.size()), Error);
 }
 
 }}  // namespace

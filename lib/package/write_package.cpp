@@ -34,42 +34,44 @@ Box3f box_of(const Aabb& a) {
   return b;
 }
 
+// A chunk's mesh entries and, borrowed from the pieces' BVHs (which must outlive the ChunkBuilder's
+// finish), their nodes and leaf blocks as one section each: gathered by finish into the chunk, not
+// concatenated here first (ChunkParts::append was 4.5 % of a FlightHelmet convert in memmove).
 template <int W, int B>
 struct ChunkParts {
-  std::vector<fmt::WideNode<W>> nodes;
-  std::vector<fmt::LeafBlock<B>> blocks;
   std::vector<fmt::MeshEntry> entries;
-  // Room for all of them at once: appended one by one, the vectors grew by doubling and copied each
-  // piece's nodes and blocks again (4.6 % of a FlightHelmet convert in memmove).
-  void reserve(const std::vector<MeshBvh<W, B>>& bvhs) {
-    size_t n = 0, b = 0;
-    for (const auto& bvh : bvhs) {
-      n += bvh.nodes.size();
-      b += bvh.blocks.size();
-    }
-    nodes.reserve(n);
-    blocks.reserve(b);
-    entries.reserve(bvhs.size());
-  }
+  std::vector<const MeshBvh<W, B>*> bvhs;
+  uint64_t node_count = 0, block_count = 0;
   void append(const MeshBvh<W, B>& bvh, uint32_t id, uint64_t triangles) {
     fmt::MeshEntry e{};
     e.id = id;
     e.root = bvh.root;
-    e.node_first = uint32_t(nodes.size());
+    e.node_first = uint32_t(node_count);
     e.node_count = uint32_t(bvh.nodes.size());
-    e.block_first = uint32_t(blocks.size());
+    e.block_first = uint32_t(block_count);
     e.block_count = uint32_t(bvh.blocks.size());
     e.triangles = triangles;
-    nodes.insert(nodes.end(), bvh.nodes.begin(), bvh.nodes.end());
-    blocks.insert(blocks.end(), bvh.blocks.begin(), bvh.blocks.end());
+    node_count += bvh.nodes.size();
+    block_count += bvh.blocks.size();
     entries.push_back(e);
+    bvhs.push_back(&bvh);
+  }
+  void add_to(ChunkBuilder& cb) const {
+    cb.add(SectionType::kMeshEntries, entries);
+    cb.begin_section(SectionType::kNodes, sizeof(fmt::WideNode<W>));
+    for (const MeshBvh<W, B>* b : bvhs) cb.append_to_section(b->nodes.data(), b->nodes.size());
+    cb.begin_section(SectionType::kBlocks, sizeof(fmt::LeafBlock<B>));
+    for (const MeshBvh<W, B>* b : bvhs) cb.append_to_section(b->blocks.data(), b->blocks.size());
   }
 };
 
 struct Job {
   ChunkKind kind;
   uint64_t id;
-  AlignedBytes raw;
+  AlignedBytes raw;  // resident chunks; a geometry chunk is sealed (compressed) at once, see seal()
+  uint64_t raw_size = 0;
+  std::vector<uint8_t> stored{};
+  fmt::Compression comp{};
   uint64_t node_bytes = 0, block_bytes = 0, triangles = 0;
   AlignedBytes attr_raw{};  // the chunk's attribute stream (SPEC §4.4); empty when it has none
   uint64_t attr_flags = 0;
@@ -80,37 +82,54 @@ struct Job {
   }
 };
 
+// Compression settings of the geometry chunks (write_t).
+struct SealOptions {
+  int level;
+  bool raw_literals;
+  int leaf_min_match;
+};
+
+// A geometry chunk laid out into a per-thread buffer and compressed from it at once (no TBB wait in
+// between, so no other chunk's task can run on this thread and reuse the buffer meanwhile): the
+// buffer keeps its pages chunk after chunk instead of faulting in fresh ones for each.
+void seal(const ChunkBuilder& cb, const SealOptions& so, Job& job) {
+  thread_local AlignedBytes raw;
+  cb.finish_into(raw);
+  job.raw_size = raw.size();
+  // Raw literals where leaf blocks are most of the chunk: their floats are what Huffman coding barely
+  // shrinks and slowly decodes.
+  const bool leafy = 2 * job.block_bytes > raw.size();
+  job.stored = PackageWriter::compress(raw.data(), raw.size(), so.level, job.comp, so.raw_literals && leafy,
+                                       leafy ? so.leaf_min_match : 0);
+}
+
 // A mesh segment: several instanced meshes, each with its BVH in local space (SPEC §4.3).
 template <int W, int B>
-void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOptions& bo, Job& job) {
+void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOptions& bo, const SealOptions& so, Job& job) {
   ChunkParts<W, B> parts;
   AttributeChunkBuilder attrs;
   std::vector<MeshBvh<W, B>> bvhs;
   bvhs.reserve(seg.meshes.size());
   for (uint32_t m : seg.meshes) bvhs.push_back(build_mesh_bvh<W, B>(scene.meshes[m], bo));
-  parts.reserve(bvhs);
   for (size_t k = 0; k < seg.meshes.size(); ++k) {
     const uint32_t m = seg.meshes[k];
     parts.append(bvhs[k], m, scene.meshes[m].triangle_count());
-    bvhs[k] = MeshBvh<W, B>();  // appended: its memory back before the next one is copied
     attrs.add(m, m, scene.meshes[m], nullptr);
     job.triangles += scene.meshes[m].triangle_count();
   }
   job.set_attributes(attrs, ChunkKind::kSegmentAttributes);
   ChunkBuilder cb{uint32_t(ChunkKind::kMeshSegment)};
-  cb.add(SectionType::kMeshEntries, parts.entries);
-  cb.add(SectionType::kNodes, parts.nodes);
-  cb.add(SectionType::kBlocks, parts.blocks);
-  job.node_bytes = parts.nodes.size() * sizeof(fmt::WideNode<W>);
-  job.block_bytes = parts.blocks.size() * sizeof(fmt::LeafBlock<B>);
-  job.raw = cb.finish();
+  parts.add_to(cb);
+  job.node_bytes = parts.node_count * sizeof(fmt::WideNode<W>);
+  job.block_bytes = parts.block_count * sizeof(fmt::LeafBlock<B>);
+  seal(cb, so, job);
 }
 
 // A batching point: its pieces (local space) with their BVHs, its local instance table and an
 // instance BVH over pieces and instances (SPEC §4.2).
 template <int W, int B>
 void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>& mesh_box, const BatchingPoint& bp,
-                 const BuildOptions& bo, Job& job) {
+                 const BuildOptions& bo, const SealOptions& so, Job& job) {
   ChunkParts<W, B> parts;
   AttributeChunkBuilder attrs;
   std::vector<fmt::InstanceRecord> records;
@@ -124,13 +143,11 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
     for (auto& blk : bvhs.back().blocks)  // leaves report the triangle's index in the original mesh
       for (int l = 0; l < B; ++l) blk.prim[l] = piece.prim[blk.prim[l]];
   }
-  parts.reserve(bvhs);
   for (size_t j = 0; j < bp.pieces.size(); ++j) {
     const uint32_t k = bp.pieces[j];
     const UniquePiece& piece = plan.pieces[k];
     const uint32_t entry = uint32_t(parts.entries.size());
     parts.append(bvhs[j], k, piece.mesh.triangle_count());
-    bvhs[j] = MeshBvh<W, B>();
     attrs.add(k, scene.instances[piece.instance].mesh, piece.mesh, &piece.prim);
     job.triangles += piece.mesh.triangle_count();
     const Instance& src = scene.instances[piece.instance];
@@ -161,19 +178,18 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   te.node_count = uint32_t(top.nodes.size());
   te.block_count = uint32_t(top.items.size());
   te.triangles = bp.unique_triangles + bp.instanced_triangles;
+  const std::vector<fmt::MeshEntry> top_entry{te};
   ChunkBuilder cb{uint32_t(ChunkKind::kBatchingPoint)};
-  cb.add(SectionType::kInstanceBvh, std::vector<fmt::MeshEntry>{te});
+  cb.add(SectionType::kInstanceBvh, top_entry);
   cb.add(SectionType::kInstanceNodes, top.nodes);
   cb.add(SectionType::kInstanceIds, top.items);
   cb.add(SectionType::kInstances, records);
   cb.add(SectionType::kGlobalIds, global_ids);
   cb.add(SectionType::kMeshSlots, slots);
-  cb.add(SectionType::kMeshEntries, parts.entries);
-  cb.add(SectionType::kNodes, parts.nodes);
-  cb.add(SectionType::kBlocks, parts.blocks);
-  job.node_bytes = (parts.nodes.size() + top.nodes.size()) * sizeof(fmt::WideNode<W>);
-  job.block_bytes = parts.blocks.size() * sizeof(fmt::LeafBlock<B>);
-  job.raw = cb.finish();
+  parts.add_to(cb);
+  job.node_bytes = (parts.node_count + top.nodes.size()) * sizeof(fmt::WideNode<W>);
+  job.block_bytes = parts.block_count * sizeof(fmt::LeafBlock<B>);
+  seal(cb, so, job);
 }
 
 // Resident sections, in file order: metadata, top level, descriptors (+ culling grids), DAG pool,
@@ -292,19 +308,15 @@ std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const
   return jobs;
 }
 
-// A resident job compressed, ready to append (PackageWriter::compress is thread-safe).
-struct PackedJob {
-  Job job;
-  std::vector<uint8_t> stored;
-  fmt::Compression comp{};
-};
-std::vector<PackedJob> compress_all(std::vector<Job> jobs, int level) {
-  std::vector<PackedJob> out(jobs.size());
+// Resident jobs compressed, ready to append (PackageWriter::compress is thread-safe).
+std::vector<Job> compress_all(std::vector<Job> jobs, int level) {
   tbb::parallel_for(size_t(0), jobs.size(), [&](size_t i) {
-    out[i].job = std::move(jobs[i]);
-    out[i].stored = PackageWriter::compress(out[i].job.raw.data(), out[i].job.raw.size(), level, out[i].comp);
+    Job& j = jobs[i];
+    j.raw_size = j.raw.size();
+    j.stored = PackageWriter::compress(j.raw.data(), j.raw.size(), level, j.comp);
+    j.raw = AlignedBytes();
   });
-  return out;
+  return jobs;
 }
 
 template <int W, int B>
@@ -332,11 +344,12 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
   voxel::DagPool pool;
   // The resident chunks that need no batching point are built and compressed beside the pipeline.
-  std::vector<PackedJob> early;
+  std::vector<Job> early;
   tbb::task_group beside;
   beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
-  struct Packed { Job job; std::vector<uint8_t> stored, attr_stored; fmt::Compression comp, attr_comp; voxel::PointProxy proxy; };
+  struct Packed { Job job; std::vector<uint8_t> attr_stored; fmt::Compression attr_comp; voxel::PointProxy proxy; };
+  const SealOptions seal_opt{o.zstd_level, o.zstd_raw_literals, o.zstd_leaf_min_match};
   uint64_t header_flags = 0;
   auto record = [&](const Job& job, const fmt::TocEntry& e) {
     SectionBytes& s = rep.by_kind[chunk_kind_name(e.kind)];
@@ -367,10 +380,10 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                Packed p;
                                                if (k < n_seg) {
                                                  p.job = {ChunkKind::kMeshSegment, k, {}};
-                                                 build_segment<W, B>(scene, plan.segments[k], o.bvh, p.job);
+                                                 build_segment<W, B>(scene, plan.segments[k], o.bvh, seal_opt, p.job);
                                                } else {
                                                  p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
-                                                 build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, p.job);
+                                                 build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, seal_opt, p.job);
                                                  if (o.dag) {
                                                    const auto t0 = std::chrono::steady_clock::now();
                                                    p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies,
@@ -379,19 +392,13 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                                    std::chrono::steady_clock::now() - t0).count();
                                                  }
                                                }
-                                               // Raw literals where leaf blocks are most of the chunk: their floats
-                                               // are what Huffman coding barely shrinks and slowly decodes.
-                                               const bool leafy = 2 * p.job.block_bytes > p.job.raw.size();
-                                               p.stored = PackageWriter::compress(p.job.raw.data(), p.job.raw.size(), o.zstd_level, p.comp,
-                                                                                  o.zstd_raw_literals && leafy,
-                                                                                  leafy ? o.zstd_leaf_min_match : 0);
                                                if (!p.job.attr_raw.empty())
                                                  p.attr_stored = PackageWriter::compress(
                                                      p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);
                                                return p;
                                              }) &
           tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
-            const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.stored, p.comp, p.job.raw.size());
+            const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.job.stored, p.job.comp, p.job.raw_size);
             record(p.job, e);
             if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
               fmt::DagGrid g = p.proxy.grid;
@@ -417,12 +424,12 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
   if (o.dag) header_flags |= fmt::kFlagDag;
   beside.wait();
-  std::vector<PackedJob> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
-  std::vector<PackedJob*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
+  std::vector<Job> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
+  std::vector<Job*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
   for (size_t i = 0; i < kResidentBeforePoints; ++i) order.push_back(&early[i]);
-  for (PackedJob& j : late) order.push_back(&j);
+  for (Job& j : late) order.push_back(&j);
   for (size_t i = kResidentBeforePoints; i < early.size(); ++i) order.push_back(&early[i]);
-  for (PackedJob* j : order) record(j->job, writer.add_packed(j->job.kind, j->job.id, j->stored, j->comp, j->job.raw.size()));
+  for (Job* j : order) record(*j, writer.add_packed(j->kind, j->id, j->stored, j->comp, j->raw_size));
   fmt::Header h{};
   h.flags = header_flags;
   h.unique_triangles = scene.unique_triangles();

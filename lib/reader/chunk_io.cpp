@@ -4,39 +4,68 @@
 namespace rtp {
 
 void ChunkBuilder::add_raw(fmt::SectionType type, const void* data, size_t count, size_t elem_size) {
+  begin_section(type, elem_size);
+  append_to_section(data, count);
+}
+
+void ChunkBuilder::begin_section(fmt::SectionType type, size_t elem_size) {
   Pending p;
   p.e.type = uint32_t(type);
   p.e.elem_size = uint32_t(elem_size);
-  p.e.count = count;
+  p.e.count = 0;
   p.e.offset = 0;
-  p.bytes.assign(static_cast<const uint8_t*>(data), static_cast<const uint8_t*>(data) + count * elem_size);
   sections_.push_back(std::move(p));
 }
 
+void ChunkBuilder::append_to_section(const void* data, size_t count) {
+  if (sections_.empty()) throw Error(ExitCode::kInternal, "ChunkBuilder: append_to_section before begin_section");
+  Pending& p = sections_.back();
+  p.e.count += count;
+  if (count) p.pieces.push_back({static_cast<const uint8_t*>(data), count * size_t(p.e.elem_size)});
+}
+
+namespace {
+uint64_t align64(uint64_t v) { return (v + 63) / 64 * 64; }
+}  // namespace
+
+uint64_t ChunkBuilder::size() const {
+  uint64_t off = align64(sizeof(fmt::ChunkHeader) + sections_.size() * sizeof(fmt::SectionEntry));
+  for (const auto& s : sections_) off = align64(off + s.e.count * s.e.elem_size);
+  return off;
+}
+
 AlignedBytes ChunkBuilder::finish() const {
-  auto align = [](uint64_t v) { return (v + 63) / 64 * 64; };
-  uint64_t off = align(sizeof(fmt::ChunkHeader) + sections_.size() * sizeof(fmt::SectionEntry));
+  AlignedBytes out;
+  finish_into(out);
+  return out;
+}
+
+void ChunkBuilder::finish_into(AlignedBytes& out) const {
+  uint64_t off = align64(sizeof(fmt::ChunkHeader) + sections_.size() * sizeof(fmt::SectionEntry));
   std::vector<fmt::SectionEntry> table;
+  table.reserve(sections_.size());
   for (const auto& s : sections_) {
     fmt::SectionEntry e = s.e;
     e.offset = off;
     table.push_back(e);
-    off = align(off + s.bytes.size());
+    off = align64(off + e.count * e.elem_size);
   }
   // Not zero-filled and then overwritten (a convert spent 3 % of its time in that memset): each byte is
   // written once, the padding to every 64-byte boundary as zeros (the package's bytes are deterministic).
-  AlignedBytes out(off);
+  out.resize(off);
   const fmt::ChunkHeader h{fmt::kChunkMagic, kind_, uint32_t(sections_.size()), 0};
   std::memcpy(out.data(), &h, sizeof h);
   if (!table.empty()) std::memcpy(out.data() + sizeof h, table.data(), table.size() * sizeof(fmt::SectionEntry));
   size_t written = sizeof h + table.size() * sizeof(fmt::SectionEntry);
   for (size_t i = 0; i < sections_.size(); ++i) {
     std::memset(out.data() + written, 0, table[i].offset - written);
-    if (!sections_[i].bytes.empty()) std::memcpy(out.data() + table[i].offset, sections_[i].bytes.data(), sections_[i].bytes.size());
-    written = table[i].offset + sections_[i].bytes.size();
+    written = table[i].offset;
+    for (const Piece& piece : sections_[i].pieces) {
+      std::memcpy(out.data() + written, piece.data, piece.bytes);
+      written += piece.bytes;
+    }
   }
   std::memset(out.data() + written, 0, out.size() - written);
-  return out;
 }
 
 ChunkView::ChunkView(const uint8_t* bytes, size_t size, uint32_t expected_kind, std::string label)

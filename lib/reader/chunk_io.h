@@ -14,15 +14,28 @@ namespace rtp {
 class ChunkBuilder {
  public:
   explicit ChunkBuilder(uint32_t kind) : kind_(kind) {}
+  // Sections are borrowed, not copied: each array must stay alive and unchanged until finish() has
+  // returned (copying them in first was 6 % of a FlightHelmet convert, faults included). A temporary
+  // would dangle, so it does not compile.
   template <class T>
   void add(fmt::SectionType type, const std::vector<T>& v) {
     add_raw(type, v.data(), v.size(), sizeof(T));
   }
+  template <class T>
+  void add(fmt::SectionType type, std::vector<T>&& v) = delete;
   void add_raw(fmt::SectionType type, const void* data, size_t count, size_t elem_size);
+  // One section gathered from several borrowed arrays, in call order: begin_section, then one
+  // append_to_section per array (e.g. each piece's BVH nodes, without concatenating them first).
+  void begin_section(fmt::SectionType type, size_t elem_size);
+  void append_to_section(const void* data, size_t count);
+  uint64_t size() const;  // the chunk's bytes, as finish() lays them out
   AlignedBytes finish() const;
+  // The same bytes into `out` (resized to size()): a buffer reused chunk after chunk keeps its pages.
+  void finish_into(AlignedBytes& out) const;
 
  private:
-  struct Pending { fmt::SectionEntry e; std::vector<uint8_t> bytes; };
+  struct Piece { const uint8_t* data; size_t bytes; };
+  struct Pending { fmt::SectionEntry e; std::vector<Piece> pieces; };
   uint32_t kind_;
   std::vector<Pending> sections_;
 };
