@@ -130,6 +130,18 @@ TEST_F(Reject, GpuInstancingAttributeCountsDiffer) {
   expect(b, "/nodes/0/extensions/EXT_mesh_gpu_instancing/attributes/SCALE: count 3 differs from the other attributes (2)");
 }
 
+// Instances are composed in parallel; the one reported is still the lowest-numbered bad one, with the
+// serial loop's message (two bad instances, in different parallel ranges).
+TEST_F(Reject, GpuInstanceOutOfFloatRangeIsTheFirstOne) {
+  GltfBuilder b = one_triangle();
+  std::vector<float> scale(3 * 10000, 1.f);
+  for (size_t k = 0; k < 3; ++k) scale[3 * 9000 + k] = scale[3 * 5000 + k] = 3e38f;
+  const int s = b.add_accessor(b.add_view(scale), 5126, "VEC3", 10000);
+  b.j["nodes"][0]["scale"] = {10, 10, 10};  // 3e39 in the world transform: beyond float
+  b.j["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"SCALE", s}};
+  expect(b, "/nodes/0/scale: world transform of EXT_mesh_gpu_instancing instance 5000 is not finite in float (entry 3e+39)");
+}
+
 TEST_F(Reject, IndicesOfWrongType) {
   GltfBuilder b = one_triangle();
   b.j["accessors"][1]["componentType"] = 5122;  // signed short
