@@ -2,6 +2,9 @@
 // level with consistent parent pointers and containing boxes.
 #include <gtest/gtest.h>
 
+#include <tbb/task_arena.h>
+
+#include <cstring>
 #include <set>
 
 #include "cluster/cluster.h"
@@ -148,6 +151,47 @@ TEST(Cluster, DegenerateAllObjectsAtOnePoint) {
   EXPECT_GE(p.points.size(), 300u / 7u + 1u);
   for (const auto& bp : p.points) EXPECT_LE(bp.instances.size(), 7u);
   check_plan(s, p);
+  std::filesystem::remove_all(dir);
+}
+
+// 10^5 instances: the first levels of the cut are binned and partitioned in parallel and the subtrees
+// cut by several tasks; the plan is complete and the same in an arena of 1 thread as of 2.
+TEST(Cluster, ParallelCutIsCompleteAndTheSameForAnyThreadCount) {
+  GltfBuilder gb = one_triangle();
+  constexpr size_t kInstances = 100000;
+  std::vector<float> t(3 * kInstances);
+  uint64_t x = 12345;
+  for (float& v : t) {
+    x = x * 6364136223846793005ull + 1442695040888963407ull;
+    v = float(double(x >> 11) / double(uint64_t(1) << 53) * 1000.0);
+  }
+  t[3 * 777] = t[3 * 778];  // two instances at the same place
+  t[3 * 777 + 1] = t[3 * 778 + 1];
+  t[3 * 777 + 2] = t[3 * 778 + 2];
+  const int acc = gb.add_accessor(gb.add_view(t), 5126, "VEC3", kInstances);
+  gb.j["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"TRANSLATION", acc}};
+  const auto dir = temp_dir("cluster_parallel");
+  const Scene s = import_gltf(gb.write_glb(dir / "many.glb"));
+  ASSERT_EQ(s.instances.size(), kInstances);
+  ClusterOptions o;
+  o.chunk_target = 64;
+  auto plan_with = [&](int threads) {
+    tbb::task_arena arena(threads);
+    return arena.execute([&] { return plan_batching_points(s, o); });
+  };
+  const Plan one = plan_with(1), two = plan_with(2);
+  EXPECT_GT(one.points.size(), kInstances / 64);
+  check_plan(s, one);
+  ASSERT_EQ(one.points.size(), two.points.size());
+  for (size_t i = 0; i < one.points.size(); ++i) {
+    ASSERT_EQ(one.points[i].instances, two.points[i].instances) << "point " << i;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(one.points[i].bounds.lo[a], two.points[i].bounds.lo[a]);
+      EXPECT_EQ(one.points[i].bounds.hi[a], two.points[i].bounds.hi[a]);
+    }
+  }
+  ASSERT_EQ(one.top.size(), two.top.size());
+  EXPECT_EQ(std::memcmp(one.top.data(), two.top.data(), one.top.size() * sizeof(fmt::TopNode)), 0);
   std::filesystem::remove_all(dir);
 }
 

@@ -2,9 +2,16 @@
 // clustered top-down by binned SAH and cut where a subtree fits the chunk target (Molenaar 2019 §3.1).
 #include "cluster/cluster.h"
 
+#include <tbb/concurrent_vector.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/task_group.h>
+
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <limits>
+#include <memory>
 
 #include "core/error.h"
 #include "mesh/mesh.h"
@@ -12,13 +19,15 @@
 namespace rtp {
 namespace {
 
+// 64 bytes, one cache line (the centroid is the box's centre, computed where it is used): the cut reads
+// every object once per level.
 struct Object {
   Aabb box;
-  Vec3d centroid;
   uint64_t weight = 0;
   uint32_t piece = kNoIndex;     // a unique piece, or
   uint32_t instance = kNoIndex;  // an instance of an instanced mesh
 };
+static_assert(sizeof(Object) == 64);
 
 // Binary cluster tree over objects, built top-down (explicit stack: no recursion depth limit).
 struct BinNode {
@@ -36,26 +45,101 @@ Aabb instance_bounds(const Scene& s, const Instance& in, const Aabb& local) {
   return b;
 }
 
+// Ranges of at least this many objects are binned and partitioned in parallel (a 10^6-instance scene's
+// first levels); smaller ones serially. Every reduction here is a min/max of boxes or an integer sum,
+// so the result does not depend on how TBB splits the range.
+constexpr size_t kParallelObjects = size_t(1) << 15;
+constexpr int kBins = 16;
+
+// Per axis and bin: the objects' boxes, weights and counts (Molenaar 2019 §3.1, after Embree's binning).
+struct Bins {
+  std::array<std::array<Aabb, kBins>, 3> box{};
+  std::array<std::array<uint64_t, kBins>, 3> w{};
+  std::array<std::array<size_t, kBins>, 3> n{};
+  void join(const Bins& o) {
+    for (int a = 0; a < 3; ++a)
+      for (int k = 0; k < kBins; ++k) {
+        box[size_t(a)][size_t(k)].grow(o.box[size_t(a)][size_t(k)]);
+        w[size_t(a)][size_t(k)] += o.w[size_t(a)][size_t(k)];
+        n[size_t(a)][size_t(k)] += o.n[size_t(a)][size_t(k)];
+      }
+  }
+};
+
+double centroid(const Object& o, int axis) { return (o.box.lo[axis] + o.box.hi[axis]) * 0.5; }  // = box.center()
+
+int bin_of(double c, double lo, double ext) { return std::min(kBins - 1, int((c - lo) / ext * kBins)); }
+
+// Reduces f(objects[i], acc) over [b, e), in parallel for large ranges; join merges two accumulators.
+template <class Acc, class F, class J>
+Acc reduce_objects(const std::vector<Object>& objs, size_t b, size_t e, const F& f, const J& join) {
+  auto run = [&](size_t lo, size_t hi, Acc acc) {
+    for (size_t i = lo; i < hi; ++i) f(objs[i], acc);
+    return acc;
+  };
+  if (e - b < kParallelObjects) return run(b, e, Acc{});
+  return tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(b, e, 4096), Acc{},
+      [&](const tbb::blocked_range<size_t>& r, Acc acc) { return run(r.begin(), r.end(), std::move(acc)); },
+      [&](Acc x, const Acc& y) {
+        join(x, y);
+        return x;
+      });
+}
+
+// A stable partition of [b, e) by `left`, in parallel for large ranges: the flags, per-block counts, a
+// prefix over the blocks and a scatter into a copy keep the serial order exactly.
+template <class P>
+size_t stable_partition_objects(std::vector<Object>& objs, size_t b, size_t e, const P& left) {
+  if (e - b < kParallelObjects)
+    return size_t(std::stable_partition(objs.begin() + long(b), objs.begin() + long(e), left) - objs.begin());
+  constexpr size_t kBlock = 8192;
+  const size_t n = e - b, blocks = (n + kBlock - 1) / kBlock;
+  std::vector<uint8_t> flag(n);
+  std::vector<size_t> lefts(blocks + 1, 0);
+  tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
+    size_t c = 0;
+    for (size_t i = k * kBlock; i < std::min(n, (k + 1) * kBlock); ++i) c += (flag[i] = left(objs[b + i]) ? 1 : 0);
+    lefts[k + 1] = c;
+  });
+  for (size_t k = 0; k < blocks; ++k) lefts[k + 1] += lefts[k];
+  const size_t total_left = lefts[blocks];
+  std::vector<Object> out(n);
+  tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
+    size_t l = lefts[k], r = total_left + k * kBlock - lefts[k];
+    for (size_t i = k * kBlock; i < std::min(n, (k + 1) * kBlock); ++i) out[flag[i] ? l++ : r++] = objs[b + i];
+  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kBlock), [&](const tbb::blocked_range<size_t>& r) {
+    std::copy(out.begin() + long(r.begin()), out.begin() + long(r.end()), objs.begin() + long(b + r.begin()));
+  });
+  return b + total_left;
+}
+
 // Molenaar 2019 §3.1 (after Embree's binned SAH): split objects[b,e) by the best of 3 axes × 16 bins
 // on centroids, cost Σ SA(child) · weight(child); median split when every centroid is equal.
-size_t split_objects(std::vector<Object>& objs, size_t b, size_t e) {
-  constexpr int kBins = 16;
-  Aabb cb;
-  for (size_t i = b; i < e; ++i) cb.grow(objs[i].centroid);
+// `cb`: the bounds of the objects' centroids.
+size_t split_objects(std::vector<Object>& objs, size_t b, size_t e, const Aabb& cb) {
+  std::array<double, 3> lo{}, ext{};
+  for (int a = 0; a < 3; ++a) lo[size_t(a)] = cb.lo[a], ext[size_t(a)] = cb.hi[a] - cb.lo[a];
+  const Bins bins = reduce_objects<Bins>(
+      objs, b, e,
+      [&](const Object& o, Bins& acc) {
+        for (int a = 0; a < 3; ++a) {
+          if (!(ext[size_t(a)] > 0)) continue;
+          const size_t k = size_t(bin_of(centroid(o, a), lo[size_t(a)], ext[size_t(a)]));
+          acc.box[size_t(a)][k].grow(o.box);
+          acc.w[size_t(a)][k] += o.weight + 1;
+          ++acc.n[size_t(a)][k];
+        }
+      },
+      [](Bins& x, const Bins& y) { x.join(y); });
   double best_cost = std::numeric_limits<double>::infinity();
   int best_axis = -1, best_bin = 0;
   for (int axis = 0; axis < 3; ++axis) {
-    const double lo = cb.lo[axis], ext = cb.hi[axis] - cb.lo[axis];
-    if (!(ext > 0)) continue;
-    std::array<Aabb, kBins> box;
-    std::array<uint64_t, kBins> w{};
-    std::array<size_t, kBins> n{};
-    for (size_t i = b; i < e; ++i) {
-      const int k = std::min(kBins - 1, int((objs[i].centroid[axis] - lo) / ext * kBins));
-      box[size_t(k)].grow(objs[i].box);
-      w[size_t(k)] += objs[i].weight + 1;
-      ++n[size_t(k)];
-    }
+    if (!(ext[size_t(axis)] > 0)) continue;
+    const auto& box = bins.box[size_t(axis)];
+    const auto& w = bins.w[size_t(axis)];
+    const auto& n = bins.n[size_t(axis)];
     std::array<double, kBins> right_cost{};
     Aabb acc;
     uint64_t wa = 0;
@@ -81,11 +165,8 @@ size_t split_objects(std::vector<Object>& objs, size_t b, size_t e) {
     }
   }
   if (best_axis < 0) return b + (e - b) / 2;  // all centroids equal: split by index
-  const double lo = cb.lo[best_axis], ext = cb.hi[best_axis] - cb.lo[best_axis];
-  auto mid = std::stable_partition(objs.begin() + long(b), objs.begin() + long(e), [&](const Object& o) {
-    return std::min(kBins - 1, int((o.centroid[best_axis] - lo) / ext * kBins)) <= best_bin;
-  });
-  return size_t(mid - objs.begin());
+  const double blo = lo[size_t(best_axis)], bext = ext[size_t(best_axis)];
+  return stable_partition_objects(objs, b, e, [&](const Object& o) { return bin_of(centroid(o, best_axis), blo, bext) <= best_bin; });
 }
 
 // Collapses the binary cluster tree into the 4-wide top level: each node takes up to 4 descendants,
@@ -142,19 +223,106 @@ std::vector<fmt::TopNode> collapse_top(const std::vector<BinNode>& bin) {
   return top;
 }
 
+// One node of the cluster tree while it is cut: an inner node's two children, or a leaf's point.
+struct CutNode {
+  Aabb box;
+  uint32_t kid[2] = {kNoIndex, kNoIndex};
+  BatchingPoint point;
+};
+
+// Molenaar 2019 §3.1: the top-down cut where a subtree's weight fits the target. Each task follows the
+// larger child itself and hands the smaller one to another task when it is big enough to be worth one
+// (so neither the call stack nor a task chain grows with a lopsided split).
+struct Cutter {
+  const Scene& scene;
+  const Plan& plan;
+  std::vector<Object>& objs;
+  tbb::concurrent_vector<CutNode> nodes;
+  tbb::task_group tasks;
+  static constexpr size_t kTaskObjects = 1024;
+
+  Cutter(const Scene& s, const Plan& p, std::vector<Object>& o) : scene(s), plan(p), objs(o) {}
+
+  void run() {
+    nodes.grow_by(1);
+    cut(0, objs.size(), 0);
+    tasks.wait();
+  }
+
+  void cut(size_t b0, size_t e0, uint32_t id0) {
+    struct Range { size_t b, e; uint32_t node; };
+    std::vector<Range> stack = {{b0, e0, id0}};
+    while (!stack.empty()) {
+      const Range t = stack.back();
+      stack.pop_back();
+      struct BoxWeight { Aabb box, centroids; uint64_t weight = 0; };  // one pass for the node and its split
+      const BoxWeight bw = reduce_objects<BoxWeight>(
+          objs, t.b, t.e,
+          [](const Object& o, BoxWeight& acc) {
+            acc.box.grow(o.box);
+            acc.centroids.grow(o.box.center());
+            acc.weight += o.weight;
+          },
+          [](BoxWeight& x, const BoxWeight& y) {
+            x.box.grow(y.box);
+            x.centroids.grow(y.centroids);
+            x.weight += y.weight;
+          });
+      CutNode& node = nodes[t.node];
+      node.box = bw.box;
+      if (bw.weight <= plan.chunk_target || t.e - t.b == 1) {
+        BatchingPoint& bp = node.point;
+        bp.bounds = bw.box;
+        for (size_t i = t.b; i < t.e; ++i) {
+          if (objs[i].piece != kNoIndex) {
+            bp.pieces.push_back(objs[i].piece);
+            bp.unique_triangles += plan.pieces[objs[i].piece].mesh.triangle_count();
+          } else {
+            bp.instances.push_back(objs[i].instance);
+            bp.instanced_triangles += scene.meshes[scene.instances[objs[i].instance].mesh].triangle_count();
+          }
+        }
+        std::sort(bp.pieces.begin(), bp.pieces.end());
+        std::sort(bp.instances.begin(), bp.instances.end());
+        continue;
+      }
+      const size_t mid = split_objects(objs, t.b, t.e, bw.centroids);
+      const uint32_t l = uint32_t(nodes.grow_by(2) - nodes.begin()), r = l + 1;
+      node.kid[0] = l;
+      node.kid[1] = r;
+      const Range left{t.b, mid, l}, right{mid, t.e, r};
+      const bool left_smaller = mid - t.b < t.e - mid;
+      const Range small = left_smaller ? left : right, large = left_smaller ? right : left;
+      if (small.e - small.b >= kTaskObjects)
+        tasks.run([this, small] { cut(small.b, small.e, small.node); });
+      else
+        stack.push_back(small);
+      stack.push_back(large);
+    }
+  }
+};
+
+uint64_t target_for(uint64_t total_triangles) {
+  return std::clamp<uint64_t>(total_triangles / 64, uint64_t(1) << 16, uint64_t(1) << 22);
+}
+
 }  // namespace
 
 uint64_t default_chunk_target(const Scene& scene, ChunkBy by) {
-  const uint64_t total = by == ChunkBy::kInstanced ? scene.instanced_triangles() : scene.unique_triangles();
-  return std::clamp<uint64_t>(total / 64, uint64_t(1) << 16, uint64_t(1) << 22);
+  return target_for(by == ChunkBy::kInstanced ? scene.instanced_triangles() : scene.unique_triangles());
 }
 
 Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   Plan plan;
   plan.chunk_by = opt.chunk_by;
-  plan.chunk_target = opt.chunk_target ? opt.chunk_target : default_chunk_target(scene, opt.chunk_by);
+  // One pass over the instances for both the uses and the instanced total (each pass over 10^6
+  // instances of 120 B costs this VM ~0.1-0.2 s).
   std::vector<uint32_t> uses(scene.meshes.size(), 0);
   for (const Instance& in : scene.instances) ++uses[in.mesh];
+  uint64_t instanced = 0;
+  for (size_t m = 0; m < uses.size(); ++m) instanced += uint64_t(uses[m]) * scene.meshes[m].triangle_count();
+  plan.chunk_target = opt.chunk_target ? opt.chunk_target
+                                       : target_for(opt.chunk_by == ChunkBy::kInstanced ? instanced : scene.unique_triangles());
   plan.mesh_instanced.resize(scene.meshes.size());
   for (size_t m = 0; m < uses.size(); ++m) plan.mesh_instanced[m] = uses[m] >= 2;
 
@@ -171,21 +339,20 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
     plan.mesh_segment[m] = uint32_t(plan.segments.size() - 1);
   }
 
-  // Objects.
+  // Objects, in instance order: an instance of an instanced mesh is one object (the boxes computed in
+  // parallel below), the single instance of a unique mesh one per piece (split here, serially, so that
+  // the pieces are numbered in instance order).
   std::vector<Aabb> local(scene.meshes.size());
   for (size_t m = 0; m < scene.meshes.size(); ++m) local[m] = scene.meshes[m].local_bounds();
   const uint64_t piece_max = std::max<uint64_t>(1, uint64_t(double(plan.chunk_target) * opt.piece_fraction));
-  std::vector<Object> objs;
-  for (size_t i = 0; i < scene.instances.size(); ++i) {
+  const size_t n_inst = scene.instances.size();
+  std::vector<size_t> first(n_inst + 1, 0);  // instance i's objects: [first[i], first[i + 1])
+  std::vector<std::pair<size_t, std::vector<Object>>> unique_objs;
+  for (size_t i = 0; i < n_inst; ++i) {
     const Instance& in = scene.instances[i];
     const Mesh& src = scene.meshes[in.mesh];
     if (plan.mesh_instanced[in.mesh]) {
-      Object o;
-      o.box = instance_bounds(scene, in, local[in.mesh]);
-      o.centroid = o.box.center();
-      o.weight = opt.chunk_by == ChunkBy::kInstanced ? src.triangle_count() : 1;
-      o.instance = uint32_t(i);
-      objs.push_back(o);
+      first[i + 1] = first[i] + 1;
       continue;
     }
     // The single instance of a unique mesh, split into pieces that stay in the mesh's local space
@@ -198,6 +365,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
       parts = split_mesh(local_copy, uint32_t(std::min<uint64_t>(piece_max, 0xffffffffu)));
     else
       parts.push_back(std::move(local_copy));
+    std::vector<Object> mine;
     for (Mesh& part : parts) {
       UniquePiece piece;
       piece.instance = uint32_t(i);
@@ -209,54 +377,48 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
       piece.mesh = std::move(part);
       Object o;
       o.box = instance_bounds(scene, in, piece.mesh.local_bounds());
-      o.centroid = o.box.center();
       o.weight = piece.mesh.triangle_count();
       o.piece = uint32_t(plan.pieces.size());
       plan.pieces.push_back(std::move(piece));
-      objs.push_back(o);
+      mine.push_back(o);
     }
+    first[i + 1] = first[i] + mine.size();
+    unique_objs.emplace_back(i, std::move(mine));
   }
+  std::vector<Object> objs(first[n_inst]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n_inst, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const Instance& in = scene.instances[i];
+      if (!plan.mesh_instanced[in.mesh]) continue;
+      Object& o = objs[first[i]];
+      o.box = instance_bounds(scene, in, local[in.mesh]);
+      o.weight = opt.chunk_by == ChunkBy::kInstanced ? scene.meshes[in.mesh].triangle_count() : 1;
+      o.instance = uint32_t(i);
+    }
+  });
+  for (auto& [i, mine] : unique_objs) std::copy(mine.begin(), mine.end(), objs.begin() + long(first[i]));
   if (objs.empty()) return plan;
 
-  // Top-down SAH cut at the target (explicit stack, left subtree first: deterministic order).
-  std::vector<BinNode> bin(1);
-  struct Task { size_t b, e; uint32_t node; };
-  std::vector<Task> stack = {{0, objs.size(), 0}};
+  // Top-down SAH cut at the target, subtrees in parallel (Cutter); then the leaves numbered left to
+  // right, as the serial cut numbered them, whatever order the tasks ran in.
+  Cutter cut(scene, plan, objs);
+  cut.run();
+  std::vector<BinNode> bin(cut.nodes.size());
+  std::vector<uint32_t> stack = {0};
   while (!stack.empty()) {
-    const Task t = stack.back();
+    const uint32_t id = stack.back();
     stack.pop_back();
-    Aabb box;
-    uint64_t weight = 0;
-    for (size_t i = t.b; i < t.e; ++i) {
-      box.grow(objs[i].box);
-      weight += objs[i].weight;
-    }
-    bin[t.node].box = box;
-    if (weight <= plan.chunk_target || t.e - t.b == 1) {
-      BatchingPoint bp;
-      bp.bounds = box;
-      for (size_t i = t.b; i < t.e; ++i) {
-        if (objs[i].piece != kNoIndex) {
-          bp.pieces.push_back(objs[i].piece);
-          bp.unique_triangles += plan.pieces[objs[i].piece].mesh.triangle_count();
-        } else {
-          bp.instances.push_back(objs[i].instance);
-          bp.instanced_triangles += scene.meshes[scene.instances[objs[i].instance].mesh].triangle_count();
-        }
-      }
-      std::sort(bp.pieces.begin(), bp.pieces.end());
-      std::sort(bp.instances.begin(), bp.instances.end());
-      bin[t.node].point = uint32_t(plan.points.size());
-      plan.points.push_back(std::move(bp));
+    CutNode& c = cut.nodes[id];
+    bin[id].box = c.box;
+    if (c.kid[0] == kNoIndex) {
+      bin[id].point = uint32_t(plan.points.size());
+      plan.points.push_back(std::move(c.point));
       continue;
     }
-    const size_t mid = split_objects(objs, t.b, t.e);
-    const uint32_t l = uint32_t(bin.size()), r = l + 1;
-    bin.resize(bin.size() + 2);
-    bin[t.node].left = l;
-    bin[t.node].right = r;
-    stack.push_back({mid, t.e, r});
-    stack.push_back({t.b, mid, l});
+    bin[id].left = c.kid[0];
+    bin[id].right = c.kid[1];
+    stack.push_back(c.kid[1]);
+    stack.push_back(c.kid[0]);
   }
   plan.top = collapse_top(bin);
   return plan;
