@@ -146,6 +146,31 @@ TEST(MeshClean, FinSharingOneEdgeThrice) {
   EXPECT_EQ(source_triangles(m), (std::vector<uint32_t>{0, 1, 2}));
 }
 
+// CleanOptions::topology = false skips OpenMesh's analysis only: the clean-up and the edge counts stay.
+TEST(MeshClean, TopologyOffSkipsOnlyTheHalfEdgeAnalysis) {
+  Mesh m;
+  m.primitives = {SourcePrimitive{}};
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {-1, 0, 0}, {-1, -1, 0}, {2, 2, 2}};  // the last one unused
+  add_tri(m, 0, 1, 2);
+  add_tri(m, 0, 3, 4);
+  add_tri(m, 1, 1, 2);  // degenerate
+  Mesh with = m;
+  CleanOptions off;
+  off.topology = false;
+  const CleanReport r = clean_mesh(m, off), full = clean_mesh(with);
+  EXPECT_FALSE(r.topology_analysed);
+  EXPECT_TRUE(full.topology_analysed);
+  EXPECT_EQ(r.nonmanifold_vertices, 0u);
+  EXPECT_EQ(full.nonmanifold_vertices, 1u);
+  for (const CleanReport* c : {&r, &full}) {
+    EXPECT_EQ(c->degenerate_removed, 1u);
+    EXPECT_EQ(c->unused_vertices_removed, 1u);
+    EXPECT_EQ(c->boundary_edges, 6u);
+  }
+  EXPECT_EQ(m.indices, with.indices);
+  EXPECT_EQ(m.positions.size(), with.positions.size());
+}
+
 TEST(MeshClean, BowTieVertexIsReported) {
   Mesh m;
   m.primitives = {SourcePrimitive{}};

@@ -165,7 +165,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
     const std::vector<nlohmann::json> objects = j.is_array() ? std::vector<nlohmann::json>(j.begin(), j.end()) : std::vector{j};
     ASSERT_FALSE(objects.empty()) << r.tool;
     for (const auto& o : objects) {
-      EXPECT_EQ(o.value("schema_version", 0), 2) << r.tool << ": " << o.dump().substr(0, 200);
+      EXPECT_EQ(o.value("schema_version", 0), 3) << r.tool << ": " << o.dump().substr(0, 200);
       EXPECT_EQ(o.value("tool_version", "").rfind(r.tool + " ", 0), 0u) << r.tool;
     }
   }
@@ -176,7 +176,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
   const ToolResult e = run_tool("rtpack-convert", {bad, "--json", "-o", (dir / "bad.rtp").string()}, dir);
   EXPECT_EQ(e.code, 3);
   const auto ej = nlohmann::json::parse(e.out);
-  EXPECT_EQ(ej["schema_version"], 2);
+  EXPECT_EQ(ej["schema_version"], 3);
   EXPECT_EQ(ej["error"]["code"], 3);
   EXPECT_EQ(ej["error"]["input"], bad);
   EXPECT_EQ(ej["error"]["pointer"], "/nodes/0/mesh");
@@ -189,7 +189,7 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
     const ToolResult f = run_tool(tool, args, dir);
     EXPECT_EQ(f.code, 3) << tool << ": " << f.err;
     const auto fj = nlohmann::json::parse(f.out);
-    EXPECT_EQ(fj["schema_version"], 2) << tool;
+    EXPECT_EQ(fj["schema_version"], 3) << tool;
     EXPECT_EQ(fj["error"]["code"], 3) << tool;
     EXPECT_TRUE(fj["error"]["pointer"].is_null()) << tool;
     EXPECT_NE(fj["error"]["message"].get<std::string>().find("truncated"), std::string::npos) << tool << ": " << f.out;
@@ -228,7 +228,7 @@ TEST_F(Conventions, UsageErrorsAndFailedVerifyUnderJsonAreEnvelopes) {
     EXPECT_EQ(t.code, 1) << r.tool << ": " << t.err;
     ASSERT_TRUE(nlohmann::json::accept(t.out)) << r.tool << " stdout: " << t.out;
     const auto j = nlohmann::json::parse(t.out);
-    EXPECT_EQ(j.value("schema_version", 0), 2) << r.tool;
+    EXPECT_EQ(j.value("schema_version", 0), 3) << r.tool;
     EXPECT_EQ(j["error"]["code"], 1) << r.tool;
     EXPECT_NE(j["error"]["message"].get<std::string>().find(r.expect), std::string::npos) << r.tool << ": " << t.out;
     EXPECT_NE(t.err.find(r.expect), std::string::npos) << r.tool << ": the text still reaches stderr: " << t.err;

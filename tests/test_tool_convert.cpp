@@ -50,6 +50,25 @@ TEST_F(Convert, DryRunJsonSummary) {
   EXPECT_EQ(j["preparation"]["triangles_after"].get<uint64_t>(), 15366u);
 }
 
+// OpenMesh's half-edge figures only with --topology: null without (not analysed), counts with.
+TEST_F(Convert, TopologyIsAnalysedOnlyWhenAsked) {
+  const fs::path p = source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf";
+  const ToolRun plain = convert("--dry-run --json " + p.string(), dir);
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  const auto a = nlohmann::json::parse(plain.out)["preparation"];
+  EXPECT_TRUE(a["nonmanifold_faces"].is_null());
+  EXPECT_TRUE(a["nonmanifold_vertices"].is_null());
+  EXPECT_TRUE(a["boundary_edges"].is_number_unsigned());
+  const ToolRun asked = convert("--dry-run --json --topology " + p.string(), dir);
+  ASSERT_EQ(asked.code, 0) << asked.err;
+  const auto b = nlohmann::json::parse(asked.out)["preparation"];
+  EXPECT_TRUE(b["nonmanifold_faces"].is_number_unsigned());
+  EXPECT_TRUE(b["nonmanifold_vertices"].is_number_unsigned());
+  EXPECT_EQ(a["boundary_edges"], b["boundary_edges"]);
+  const ToolRun text = convert("--dry-run --topology " + p.string(), dir);
+  EXPECT_NE(text.out.find("half-edge topology"), std::string::npos) << text.out;
+}
+
 TEST_F(Convert, TextSummaryNamesCountsAndBounds) {
   const ToolRun r = convert("--dry-run " + (source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;

@@ -162,7 +162,7 @@ TEST_F(TraceImage, UsageErrorsUnderJsonAreEnvelopes) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["error"]["code"].get<int>(), 1);
   EXPECT_NE(j["error"]["message"].get<std::string>().find("--size 0x5"), std::string::npos) << r.out;
-  EXPECT_EQ(j["schema_version"].get<int>(), 2);
+  EXPECT_EQ(j["schema_version"].get<int>(), 3);
 }
 
 TEST_F(TraceImage, SizeParsing) {

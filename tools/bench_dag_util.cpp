@@ -30,7 +30,8 @@ Prepared load(const std::string& path, uint64_t chunk_target, const std::vector<
   p.scene = import_gltf(path, io);
   p.import_s = since(t0);
   t0 = Clock::now();
-  PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision
+  PrepareOptions prep;  // rtpack-convert's defaults: no weld, no subdivision, no half-edge analysis
+  prep.clean.topology = false;
   prep.clean.weld_eps = -1;
   (void)prepare_scene(p.scene, prep);
   p.prepare_s = since(t0);

@@ -15,7 +15,7 @@
 namespace rtp::tools {
 
 // Bumped when a key of any tool's --json output changes meaning or disappears (adding keys does not).
-inline constexpr int kJsonSchemaVersion = 2;  // 2: package_bytes everywhere, snake_case section keys
+inline constexpr int kJsonSchemaVersion = 3;  // 2: package_bytes everywhere, snake_case section keys; 3: preparation.nonmanifold_faces/_vertices null unless --topology
 
 inline std::string version_line(const char* tool) {
   return std::string(tool) + " " RTP_VERSION " (package format " + std::to_string(fmt::kVersionMajor) + "." +

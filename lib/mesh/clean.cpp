@@ -232,7 +232,10 @@ CleanReport clean_mesh(Mesh& mesh, const CleanOptions& opt) {
 
   // 5. Topology report.
   count_edges(mesh, report);
-  analyze_with_openmesh(mesh, report);
+  if (opt.topology) {
+    analyze_with_openmesh(mesh, report);
+    report.topology_analysed = true;
+  }
   return report;
 }
 

@@ -12,6 +12,7 @@ PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
   rep.triangles_before = scene.unique_triangles();
   std::vector<CleanReport> per(scene.meshes.size());
   tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { per[m] = clean_mesh(scene.meshes[m], opt.clean); });
+  rep.clean.topology_analysed = opt.clean.topology;
   for (const CleanReport& c : per) {
     rep.clean.degenerate_removed += c.degenerate_removed;
     rep.clean.nonfinite_removed += c.nonfinite_removed;
@@ -67,14 +68,18 @@ nlohmann::json prepare_report_json(const PrepareReport& r) {
                       {"welded_vertices", r.clean.welded_vertices},
                       {"unused_vertices_removed", r.clean.unused_vertices_removed},
                       {"nonmanifold_edges", r.clean.nonmanifold_edges},
-                      {"nonmanifold_faces", r.clean.nonmanifold_faces},
-                      {"nonmanifold_vertices", r.clean.nonmanifold_vertices},
+                      {"nonmanifold_faces", nullptr},
+                      {"nonmanifold_vertices", nullptr},
                       {"boundary_edges", r.clean.boundary_edges},
                       {"meshes_emptied", r.meshes_emptied},
                       {"uniform_levels", r.uniform_levels},
                       {"uniform_fallbacks", r.uniform_fallbacks},
                       {"triangles_before", r.triangles_before},
                       {"triangles_after", r.triangles_after}};
+  if (r.clean.topology_analysed) {  // null: not analysed (rtpack-convert --topology)
+    j["nonmanifold_faces"] = r.clean.nonmanifold_faces;
+    j["nonmanifold_vertices"] = r.clean.nonmanifold_vertices;
+  }
   if (r.adaptive) {
     nlohmann::json per = nlohmann::json::array();
     for (const auto& m : r.subdivide.meshes)
@@ -99,6 +104,9 @@ std::string prepare_report_text(const PrepareReport& r) {
        to_string(r.clean.unused_vertices_removed) + " unused removed\n";
   o += "  topology             " + to_string(r.clean.nonmanifold_edges) + " non-manifold edges, " +
        to_string(r.clean.boundary_edges) + " boundary edges (reported, kept)\n";
+  if (r.clean.topology_analysed)
+    o += "  half-edge topology   " + to_string(r.clean.nonmanifold_faces) + " faces OpenMesh refuses, " +
+         to_string(r.clean.nonmanifold_vertices) + " non-manifold vertices\n";
   if (r.uniform_levels)
     o += "  subdivision          uniform Loop x" + to_string(r.uniform_levels) +
          (r.uniform_fallbacks ? " (" + to_string(r.uniform_fallbacks) + " meshes used the midpoint fallback)" : "") + "\n";

@@ -54,6 +54,7 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
   stage("prepare");
   PrepareOptions prep;
   prep.clean.weld_eps = s.weld;
+  prep.clean.topology = s.topology;
   prep.subdivide_levels = s.subdivide;
   prep.subdivide_to = s.subdivide_to;
   out.prepare = prepare_scene(scene, prep);

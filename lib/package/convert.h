@@ -34,6 +34,7 @@ struct ConvertSettings {
   bool dag = true;                           // culling DAGs
   uint32_t dag_resolution = 0;               // 0: per batching point
   bool dry_run = false;                      // stop after preparation
+  bool topology = false;                     // CleanOptions::topology (OpenMesh half-edge analysis; report only)
 };
 
 // The caller's view while it runs: a stage starts (counts = false: progress in work units, not items),

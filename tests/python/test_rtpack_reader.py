@@ -467,7 +467,7 @@ class Refusals(unittest.TestCase):
         # --verify lists problems; a package refused before that is {"error": {...}} (docs/json.md).
         if report and "error" in report:
             self.assertEqual(report["error"]["code"], 3)
-            self.assertEqual(report["schema_version"], 2)
+            self.assertEqual(report["schema_version"], 3)
         listed = report["problems"]["listed"] if report and "problems" in report else []
         cpp = listed + ([report["error"]["message"]] if report and "error" in report else []) + [proc.stderr]
         self.assertTrue(any(msg in m for m in cpp), f"python: {msg}\nC++: {cpp}")
