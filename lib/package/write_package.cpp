@@ -233,9 +233,11 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
   tc.add(SectionType::kTopNodes, plan.top);
   add(ChunkKind::kTopLevelBvh, tc);
 
-  std::vector<fmt::InstanceRecord> recs;
-  recs.reserve(scene.instances.size());
-  for (const Instance& in : scene.instances) recs.push_back(make_instance_record(in));
+  // In parallel: 10^6 records one by one were 5 % of a forest-1m convert's samples, on one thread.
+  std::vector<fmt::InstanceRecord> recs(scene.instances.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, recs.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) recs[i] = make_instance_record(scene.instances[i]);
+  });
   ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
   ic.add(SectionType::kInstances, recs);
   add(ChunkKind::kInstances, ic);
