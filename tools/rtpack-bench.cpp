@@ -53,6 +53,7 @@
 #include "oracle/rays.h"
 #include "scene/import.h"
 #include "trace/trace.h"
+#include "malloc_policy.h"
 #include "tool_version.h"
 
 namespace {
@@ -377,6 +378,7 @@ int run(Config& cfg) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  rtp::tools::keep_freed_memory();  // before the first large allocation (malloc_policy.h)
   CLI::App app{"rtpack-bench: rtpack's in-core tracer vs Embree 3 (ROBUST) on the same rays, same run"};
   rtp::tools::add_version_flag(app, "rtpack-bench");
   Config cfg;

@@ -19,6 +19,7 @@
 #include "package/write_package.h"
 #include "scene/import.h"
 #include "scene/summary.h"
+#include "malloc_policy.h"
 #include "tool_version.h"
 
 namespace {
@@ -28,6 +29,7 @@ std::string human(double bytes) { return rtp::human_bytes(bytes); }
 }  // namespace
 
 int main(int argc, char** argv) {
+  rtp::tools::keep_freed_memory();  // before the first large allocation (malloc_policy.h)
   CLI::App app{"rtpack-convert: prepare a glTF scene for out-of-core ray tracing"};
   rtp::tools::add_version_flag(app, "rtpack-convert");
   std::string input, output, build = "collapse", chunk_by = "instanced";
