@@ -9,9 +9,7 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <limits>
-#include <memory>
 
 #include "core/error.h"
 #include "mesh/mesh.h"
@@ -29,7 +27,7 @@ struct Object {
 };
 static_assert(sizeof(Object) == 64);
 
-// Binary cluster tree over objects, built top-down (explicit stack: no recursion depth limit).
+// Binary cluster tree over objects, as collapse_top reads it (laid out from the Cutter's tree).
 struct BinNode {
   Aabb box;
   uint32_t left = kNoIndex, right = kNoIndex;  // inner node children

@@ -62,24 +62,27 @@ PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
   return rep;
 }
 
+namespace {
+nlohmann::json analysed_or_null(const PrepareReport& r, uint64_t count) {
+  return r.clean.topology_analysed ? nlohmann::json(count) : nlohmann::json(nullptr);
+}
+}  // namespace
+
 nlohmann::json prepare_report_json(const PrepareReport& r) {
   nlohmann::json j = {{"degenerate_removed", r.clean.degenerate_removed},
                       {"nonfinite_removed", r.clean.nonfinite_removed},
                       {"welded_vertices", r.clean.welded_vertices},
                       {"unused_vertices_removed", r.clean.unused_vertices_removed},
                       {"nonmanifold_edges", r.clean.nonmanifold_edges},
-                      {"nonmanifold_faces", nullptr},
-                      {"nonmanifold_vertices", nullptr},
+                      // null: not analysed (rtpack-convert --topology)
+                      {"nonmanifold_faces", analysed_or_null(r, r.clean.nonmanifold_faces)},
+                      {"nonmanifold_vertices", analysed_or_null(r, r.clean.nonmanifold_vertices)},
                       {"boundary_edges", r.clean.boundary_edges},
                       {"meshes_emptied", r.meshes_emptied},
                       {"uniform_levels", r.uniform_levels},
                       {"uniform_fallbacks", r.uniform_fallbacks},
                       {"triangles_before", r.triangles_before},
                       {"triangles_after", r.triangles_after}};
-  if (r.clean.topology_analysed) {  // null: not analysed (rtpack-convert --topology)
-    j["nonmanifold_faces"] = r.clean.nonmanifold_faces;
-    j["nonmanifold_vertices"] = r.clean.nonmanifold_vertices;
-  }
   if (r.adaptive) {
     nlohmann::json per = nlohmann::json::array();
     for (const auto& m : r.subdivide.meshes)
