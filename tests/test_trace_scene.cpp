@@ -135,6 +135,70 @@ TYPED_TEST(TraceScene, EveryPathEqualsScalarAndBruteForce) {
   EXPECT_LE(ties, 6) << "classified edge ties";
 }
 
+// Row-major 3x3 part and translation as an Affine.
+Affine affine(const std::array<float, 9>& l, std::array<float, 3> t) {
+  return {l[0], l[1], l[2], t[0], l[3], l[4], l[5], t[1], l[6], l[7], l[8], t[2]};
+}
+
+// Issue 11: instances whose L^-1 is a signed permutation get their local ray from the world ray's
+// (move_ray_by_axes) instead of the double products and a division. Every ISA and order must give what
+// the general path (a view without AxisMoves) gives, bit for bit, also for rays with a zero component of
+// org − T or dir (they fall back) and rays on which the instance's translation plane lies.
+TYPED_TEST(TraceScene, AxisMovesEqualTheGeneralTransformBitForBit) {
+  constexpr int W = TypeParam::W, B = TypeParam::B;
+  Rng rng(5);
+  std::vector<std::vector<Tri>> meshes = {random_soup(rng, 200), soup(make_icosphere(2), 2.0, {0.25, 0, 0})};
+  const std::array<float, 3> t0{2, 0, -3}, t1{-6, 4, 1}, t2{0, -5, 6};
+  std::vector<TestInstance> inst = {
+      {0, affine({0, -1, 0, 1, 0, 0, 0, 0, 1}, t0)},        // quarter turn about z
+      {1, affine({-1, 0, 0, 0, 1, 0, 0, 0, -1}, t1)},       // half turn about y (Lantern's root node)
+      {1, affine({-1, 0, 0, 0, 1, 0, 0, 0, 1}, t2)},        // mirror
+      {0, affine({0, 0, 1, 1, 0, 0, 0, 1, 0}, {7, 7, 7})},  // axis cycle
+      {1, translation(-3, -3, 5)},
+      {1, identity()},                                        // moves no ray
+      {0, rotate_scale({1, 2, 3}, 0.7, 1.5, {-5, 3, 1})},    // general
+      {1, affine({0, 0, -1, 0, -1, 0, -1, 0, 0}, {1e5f, -2e5f, 3e5f})},
+  };
+  const TestScene<W, B> scene = build_scene<W, B>(std::move(meshes), std::move(inst));
+  const std::vector<AxisMove> moves = axis_moves(scene.instances.data(), scene.instances.size());
+  const uint8_t kinds[] = {AxisMove::kAxes, AxisMove::kAxes, AxisMove::kAxes, AxisMove::kAxes,
+                           AxisMove::kAxes, AxisMove::kNone, AxisMove::kGeneral, AxisMove::kAxes};
+  ASSERT_EQ(moves.size(), std::size(kinds));
+  for (size_t i = 0; i < moves.size(); ++i) EXPECT_EQ(moves[i].kind, kinds[i]) << "instance " << i;
+
+  size_t invalid = 0;
+  std::vector<fmt::Ray> rays = mixed_rays(4000, 11, &invalid);
+  // Aimed at each instance, some from an origin on its translation planes, some with zero components.
+  const std::array<float, 3> targets[] = {t0, t1, t2, {7, 7, 7}, {-3, -3, 5}, {1e5f, -2e5f, 3e5f}};
+  for (int i = 0; i < 3000; ++i) {
+    const std::array<float, 3>& c = targets[rng.below(std::size(targets))];
+    fmt::Ray r{};
+    for (int a = 0; a < 3; ++a) r.org[a] = c[a] + rng.range(-12, 12);
+    if (i % 3 == 0) {  // on one of the instance's translation planes: org − T has a zero
+      const uint32_t a = rng.below(3);
+      r.org[a] = c[a];
+    }
+    for (int a = 0; a < 3; ++a) r.dir[a] = c[a] + rng.range(-2, 2) - r.org[a];
+    if (i % 7 == 0) r.dir[rng.below(3)] = rng.below(2) ? 0.0f : -0.0f;
+    r.tfar = INFINITY;
+    rays.push_back(r);
+  }
+  SceneView<W, B> fast = scene.view();
+  fast.moves = moves.data();
+  const PathResult general = run_path<W, B>(scene.view(), rays, {Isa::kScalar, TraversalOrder::kOctantStack, 0});
+  const PathResult got = check_all_paths<W, B>(fast, rays, "axis moves");
+  int bad = 0, hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    hits += general.hits[i].instance != fmt::Hit::kNone && general.hits[i].instance != 6;
+    if ((!same_hit(got.hits[i], general.hits[i]) || got.occluded[i] != general.occluded[i]) && ++bad <= 5)
+      ADD_FAILURE() << "ray " << i << ": t " << got.hits[i].t << " vs " << general.hits[i].t << ", instance "
+                    << got.hits[i].instance << " vs " << general.hits[i].instance << ", prim " << got.hits[i].prim
+                    << " vs " << general.hits[i].prim;
+  }
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(hits, 1500) << "rays that hit an instance moved by its axes";
+}
+
 // TESTING.md case 5: a hit exactly at tnear or at tfar counts, one ulp outside does not, through the
 // instance transform (an exact translation) and both levels.
 TYPED_TEST(TraceScene, HitsExactlyAtTnearAndTfar) {

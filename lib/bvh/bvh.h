@@ -153,6 +153,7 @@ class InCoreScene {
   std::vector<MeshBvhView<W, B>> views_;
   BoxBvh<W> top_;  // items = instance indices
   std::vector<fmt::InstanceRecord> records_;
+  std::vector<AxisMove> moves_;  // axis_moves(records_), for the view
   std::vector<std::string> warnings_;
 };
 

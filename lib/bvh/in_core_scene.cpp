@@ -93,6 +93,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
     boxes.push_back(box);
     ids.push_back(uint32_t(i));
   }
+  out.moves_ = axis_moves(out.records_.data(), out.records_.size());
   out.top_ = build_box_bvh<W>(boxes, options, "instance BVH");
   for (uint32_t& item : out.top_.items) item = ids[item];
   return out;
@@ -107,6 +108,7 @@ SceneView<W, B> InCoreScene<W, B>::view() const {
   v.instances = records_.data();
   v.meshes = views_.data();
   v.direct = direct_instance(records_.data(), records_.size());
+  v.moves = moves_.data();
   return v;
 }
 

@@ -15,8 +15,9 @@ inline uint32_t box_test_scalar(const fmt::WideNode<W>& node, const detail::BoxR
   for (int i = 0; i < W; ++i) {
     float tn = r.tnear, tf = tfar;
     for (int a = 0; a < 3; ++a) {
-      const float near_plane = r.neg[a] ? node.hi[a][i] : node.lo[a][i];
-      const float far_plane = r.neg[a] ? node.lo[a][i] : node.hi[a][i];
+      const bool neg = (r.octant >> a) & 1u;
+      const float near_plane = neg ? node.hi[a][i] : node.lo[a][i];
+      const float far_plane = neg ? node.lo[a][i] : node.hi[a][i];
       tn = max_keep((near_plane - r.org[a]) * r.rcp[a], tn);
       tf = min_keep((far_plane - r.org[a]) * r.rcp[a], tf);
     }

@@ -135,6 +135,7 @@ template <int W, int B>
 struct PointSlot {
   PointSections<W, B> s;
   std::vector<MeshBvhView<W, B>> meshes;  // by local slot, rebuilt each round it is traced
+  std::vector<AxisMove> moves;            // axis_moves of the point's records, for the view
   SceneView<W, B> view;
 };
 template <int W, int B>
@@ -542,8 +543,9 @@ class Batched final : public OutOfCoreTracer {
                      std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) + " is in none of the point's mesh segments");
       pt.meshes[k] = *found;
     }
+    pt.moves = axis_moves(s.records, s.n_records);
     pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
-               direct_instance(s.records, s.n_records)};
+               direct_instance(s.records, s.n_records), pt.moves.data()};
   }
 
   const PackageReader& r_;

@@ -36,6 +36,7 @@ template <int W, int B>
 struct Point {
   SceneView<W, B> view;
   std::vector<MeshBvhView<W, B>> meshes;  // by local slot
+  std::vector<AxisMove> moves;            // axis_moves of the point's records, for the view
   const uint32_t* global_ids = nullptr;
   uint64_t instance_count = 0;
 };
@@ -121,8 +122,9 @@ class Tracer final : public PackageTracer {
           pt.meshes[k] = it->second;
         }
       }
+      pt.moves = axis_moves(s.records, s.n_records);
       pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
-               direct_instance(s.records, s.n_records)};
+               direct_instance(s.records, s.n_records), pt.moves.data()};
       pt.instance_count = s.n_records;
     }
     load_.total_seconds = seconds_since(t_start);

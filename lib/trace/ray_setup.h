@@ -26,8 +26,7 @@ struct BoxRay {
   float org[3];
   float rcp[3];     // 1/dir, ±inf for a ±0 component (sign kept)
   float tnear;
-  uint8_t neg[3];   // signbit(dir[a]): the near plane is hi, the far plane lo
-  uint8_t octant;   // bit a = neg[a] (WideNode::order row)
+  uint8_t octant;   // bit a = signbit(dir[a]): the near plane is hi, the far plane lo (WideNode::order row)
 };
 
 // A ray as the watertight triangle test reads it (Woop, Benthin, Wald 2013 §3): kz the dominant

@@ -2,6 +2,7 @@
 // What the tracer needs of a scene: non-owning views of the two-level wide BVH (formats/ layout).
 // Built in core by lib/bvh (InCoreScene) and, later, from a package by lib/package.
 #include <cstdint>
+#include <vector>
 
 #include "formats/bvh_layout.h"
 
@@ -21,6 +22,49 @@ inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t cou
         return kNoDirectInstance;
   }
   return 0;
+}
+
+// How an instance record moves a ray, worked out once per view so that walks need not test it per
+// visit (issue 11). kAxes: L^-1 is a signed permutation (translations, axis flips, quarter turns;
+// Lantern, gallery), so org' = ±(org − T)[axis] and dir' = ±dir[axis] exactly as transform_ray's double
+// products give them whenever no component is zero (trace: move_ray_by_axes), and 1/dir' is ±1/dir.
+struct AxisMove {
+  enum Kind : uint8_t { kGeneral = 0, kNone = 1, kAxes = 2 };  // kNone: T = 0 and L^-1 = I exactly
+  uint8_t axis[3];  // row r of L^-1 has its one nonzero entry in column axis[r]
+  uint8_t neg;      // bit r: that entry is -1
+  uint8_t kind;
+};
+
+inline AxisMove axis_move(const fmt::InstanceRecord& r) {
+  AxisMove m{{0, 0, 0}, 0, AxisMove::kGeneral};
+  uint32_t columns = 0;
+  for (int row = 0; row < 3; ++row) {
+    int found = -1;
+    for (int c = 0; c < 3; ++c) {
+      const float x = r.inverse_linear[3 * row + c];
+      if (x == 1.0f || x == -1.0f) {
+        if (found >= 0) return {{0, 0, 0}, 0, AxisMove::kGeneral};
+        found = c;
+        m.neg |= uint8_t((x < 0 ? 1u : 0u) << row);
+      } else if (!(x == 0.0f)) {
+        return {{0, 0, 0}, 0, AxisMove::kGeneral};  // also NaN
+      }
+    }
+    if (found < 0 || (columns >> found) & 1u) return {{0, 0, 0}, 0, AxisMove::kGeneral};
+    columns |= 1u << found;
+    m.axis[row] = uint8_t(found);
+  }
+  const bool identity = m.neg == 0 && m.axis[0] == 0 && m.axis[1] == 1 && m.axis[2] == 2;
+  const bool no_translation = r.translation[0] == 0 && r.translation[1] == 0 && r.translation[2] == 0;
+  m.kind = identity && no_translation ? AxisMove::kNone : AxisMove::kAxes;
+  return m;
+}
+
+// One AxisMove per record, for the view's owner to keep beside the records.
+inline std::vector<AxisMove> axis_moves(const fmt::InstanceRecord* records, uint64_t count) {
+  std::vector<AxisMove> out(count);
+  for (uint64_t i = 0; i < count; ++i) out[i] = axis_move(records[i]);
+  return out;
 }
 
 // One mesh's BVH in its local space.
@@ -44,6 +88,9 @@ struct SceneView {
   // The scene's only instance when its record is the identity (direct_instance()): rays walk its mesh
   // in world space and skip the instance level (issue 11). The answers are the same bit for bit.
   uint32_t direct = kNoDirectInstance;
+  // axis_moves(instances): how each record moves a ray; nullptr: every visit takes the general path
+  // (transform_ray). The answers are the same bit for bit either way.
+  const AxisMove* moves = nullptr;
 };
 
 }  // namespace rtp

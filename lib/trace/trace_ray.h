@@ -96,7 +96,8 @@ __attribute__((noinline)) Walk walk_mesh_one(const SceneView<W, B>& s, uint32_t 
 
 // One instance-level leaf for one world ray: each instance's record moves the ray into its local space
 // (transform_ray, direction not renormalized, so t is shared by both levels) and its mesh is walked.
-// `world` is the world ray's box form: an instance that moves no ray (moves_no_ray) is walked with it.
+// `world` is the world ray's box form: an instance that moves no ray (AxisMove::kNone) is walked with
+// it, one whose L^-1 is a signed permutation gets its local ray from it (move_ray_by_axes).
 template <class K, TraversalOrder O, int W, int B, class Sink>
 inline Walk instance_leaf_one(const SceneView<W, B>& s, uint32_t ref, const fmt::Ray& ray, const detail::BoxRay& world,
                               Sink& sink) {
@@ -112,11 +113,18 @@ inline Walk instance_leaf_one(const SceneView<W, B>& s, uint32_t ref, const fmt:
     const float* o = ray.org;
     const float* d = ray.dir;
     const detail::BoxRay* b = &world;
-    float org[3], dir[3];
+    alignas(16) float org[4], dir[4];
     detail::BoxRay box;
-    if (!moves_no_ray(s.instances[id])) {
-      if (!transform_ray(s.instances[id], ray.org, ray.dir, org, dir)) continue;
-      setup_box_ray(org, dir, ray.tnear, &box);
+    const fmt::InstanceRecord& inst = s.instances[id];
+    const uint8_t kind = s.moves ? s.moves[id].kind : uint8_t(moves_no_ray(inst) ? AxisMove::kNone : AxisMove::kGeneral);
+    if (kind != AxisMove::kNone) {
+      AxisMoveResult r = AxisMoveResult::kGeneral;
+      if (kind == AxisMove::kAxes) r = move_ray_by_axes(inst, s.moves[id], ray, world, org, dir, &box);
+      if (r == AxisMoveResult::kSkip) continue;
+      if (r == AxisMoveResult::kGeneral) {
+        if (!transform_ray(inst, ray.org, ray.dir, org, dir)) continue;
+        setup_box_ray(org, dir, ray.tnear, &box);
+      }
       o = org, d = dir, b = &box;
     }
     const Walk w = walk_mesh_one<K, O>(s, id, mesh_root, o, d, ray.tnear, *b, sink);
