@@ -21,6 +21,7 @@ struct ScalarKernels {
   static uint32_t ordered(uint32_t mask, const uint8_t* order) {
     return ordered_mask_scalar<W>(mask, order);
   }
+  static constexpr bool kPushOrdered8 = false;  // the walk's loop pushes the children
   template <int B>
   static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_scalar<B, false>(b, r, tfar, out);

@@ -28,6 +28,12 @@ struct SimdKernels {
   RTP_KERNEL_INLINE static uint32_t ordered(uint32_t mask, const uint8_t* order) {
     return ordered_mask_sse<W>(mask, order);
   }
+  // W = 8 walks push their ordered child hits with one permutation (push_ordered8).
+  static constexpr bool kPushOrdered8 = true;
+  RTP_KERNEL_INLINE static void push_ordered8(void* dst, const uint32_t* child, const float* dist,
+                                              const uint8_t* order, uint32_t rest) {
+    rtp::RTP_ISA_NS::push_ordered8(dst, child, dist, order, rest);
+  }
   template <int B>
   RTP_KERNEL_INLINE static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_simd<Vec<B>, B, false>(b, r, tfar, out);

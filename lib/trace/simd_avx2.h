@@ -92,4 +92,38 @@ inline uint32_t ordered_mask_sse(uint32_t mask, const uint8_t* order) {
   return W == 16 ? om : om & ((1u << W) - 1u);
 }
 
+// For each 8-bit mask, its set bit positions from the highest down, padded with 0: the permutation that
+// packs the marked lanes of a vector, far to near (push_ordered8).
+struct PushOrder {
+  uint8_t lanes[256][8];
+  constexpr PushOrder() : lanes{} {
+    for (int m = 0; m < 256; ++m) {
+      int k = 0;
+      for (int i = 7; i >= 0; --i)
+        if ((m >> i) & 1) lanes[m][k++] = uint8_t(i);
+    }
+  }
+};
+inline constexpr PushOrder kPushOrder{};
+
+// Molenaar 2019 §4.1's push of the hit children but the nearest, for W = 8 without a loop (issue 11: the
+// loop ran ~8 instructions per child and its exit was a branch the predictor missed): `rest` marks
+// positions in the node's octant order `order`; their (child, entry distance) pairs are written to
+// `dst` from the farthest to the nearest, exactly as the loop pushed them, plus garbage up to 8 pairs
+// (dst has room for 8). `dist` is the box test's per-lane entry distances.
+RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
+                                     uint32_t rest) {
+  const __m256i ord = _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))),
+                                       _mm256_set1_epi32(15));
+  const __m256i pick =
+      _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
+  const __m256i lanes = _mm256_permutevar8x32_epi32(ord, pick);
+  const __m256i refs =
+      _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes);
+  const __m256i ds = _mm256_permutevar8x32_epi32(_mm256_castps_si256(_mm256_loadu_ps(dist)), lanes);
+  const __m256i lo = _mm256_unpacklo_epi32(refs, ds), hi = _mm256_unpackhi_epi32(refs, ds);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst), _mm256_permute2x128_si256(lo, hi, 0x20));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst) + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
+}
+
 }  // namespace rtp::RTP_ISA_NS

@@ -19,7 +19,7 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
   };
   // Each inner level adds at most W - 1 entries (the nearest child is not pushed).
   constexpr int kCapacity = (W - 1) * detail::kMaxDepth + 1;
-  Entry stack[kCapacity];
+  Entry stack[kCapacity + 8];  // push_ordered8 writes 8 entries, the pushed ones first
   int sp = 0;
   alignas(64) float dist[W];
   const typename K::template NodeRay<W> node_ray = K::template node_ray<W>(ray);
@@ -42,11 +42,17 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
         const int nearest = lowest_bit(om);
         om &= om - 1;
         if (sp + bit_count(om) > kCapacity) return Walk::kOverflow;
-        while (om) {
-          const int i = highest_bit(om);
-          om &= ~(1u << i);
-          const int lane = order[i] & 15;
-          stack[sp++] = {node.child[lane], dist[lane]};
+        if constexpr (W == 8 && K::kPushOrdered8) {
+          static_assert(sizeof(Entry) == 8);
+          K::push_ordered8(stack + sp, node.child, dist, order, om);
+          sp += bit_count(om);
+        } else {
+          while (om) {
+            const int i = highest_bit(om);
+            om &= ~(1u << i);
+            const int lane = order[i] & 15;
+            stack[sp++] = {node.child[lane], dist[lane]};
+          }
         }
         cur = node.child[order[nearest] & 15];
         continue;
