@@ -199,6 +199,62 @@ TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {
   }
 }
 
+// An axis-aligned orthographic camera: every ray of a tile has the same ±inf reciprocals on two axes
+// (issue 11: gallery's such rays all went alone). Those tiles go as packets and answer as single rays
+// bit for bit, also from origins on the scene's bounding planes (0·inf there); a tile with one ray that
+// is not axis-aligned, or with +0 and -0 mixed, still sends that ray alone.
+TEST(TracePackets, OrthographicAxisAlignedTilesGoAsPacketsAndEqualSingleRays) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  // Unit cubes at even integer places: every box plane is a multiple of 0.5, and so is every 2nd origin.
+  Scene scene;
+  scene.meshes.push_back(make_cube(0.5));
+  for (int k = 0; k < 16; ++k) {
+    Instance in;
+    in.transform(0, 3) = 2.0 * (k % 4), in.transform(1, 3) = 2.0 * (k / 4), in.transform(2, 3) = 0.5 * (k % 3);
+    scene.instances.push_back(in);
+  }
+  scene.bounds = Aabb{};
+  for (const Instance& in : scene.instances)
+    for (const auto& p : scene.meshes[0].positions) scene.bounds.grow(in.transform.apply(to_d(p)));
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(scene);
+  std::vector<fmt::Ray> rays;
+  size_t pure = 0;
+  for (int tile = 0; tile < 256; ++tile) {
+    const int tx = tile % 16, ty = tile / 16;
+    const bool mixed = tile % 9 == 4, signed_zero = tile % 9 == 7;
+    for (int i = 0; i < 16; ++i) {
+      fmt::Ray r{};
+      // A tile spans 0.5: its first and last columns and rows lie on box planes (x = -0.5, 0.5, 1.5, ...).
+      const float step[4] = {0.0f, 1.0f / 6.0f, 1.0f / 3.0f, 0.5f};
+      r.org[0] = -1.0f + 0.5f * float(tx) + step[i % 4];
+      r.org[1] = -1.0f + 0.5f * float(ty) + step[i / 4];
+      r.org[2] = 4.0f;
+      r.dir[0] = 0.0f, r.dir[1] = 0.0f, r.dir[2] = -1.0f;
+      if (tile % 2) r.dir[0] = -0.0f, r.dir[2] = -2.0f;  // the other x octant, a longer direction
+      if (mixed && i == 6) r.dir[0] = 1e-3f;              // not axis-aligned: alone
+      if (signed_zero && i == 9) r.dir[1] = -0.0f;        // another octant: alone
+      r.tfar = INFINITY;
+      rays.push_back(r);
+    }
+    pure += mixed || signed_zero ? 0 : 16;
+  }
+  for (Isa isa : simd_isas()) {
+    const Answers single = run<8, 8>(bvh.view(), rays, {isa, TraversalOrder::kOctantStack, 0});
+    size_t hit = 0;
+    for (const fmt::Hit& h : single.hits) hit += h.instance != fmt::Hit::kNone;
+    EXPECT_GT(hit, rays.size() / 8) << "the camera must see the instances";
+    for (uint32_t p : {4u, 8u, 16u}) {
+      const Answers got = run<8, 8>(bvh.view(), rays, {isa, TraversalOrder::kOctantStack, p});
+      for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_TRUE(same(got.hits[i], single.hits[i])) << isa_name(isa) << " packets of " << p << " ray " << i;
+        ASSERT_EQ(got.occluded[i], single.occluded[i]) << isa_name(isa) << " packets of " << p << " ray " << i;
+      }
+      EXPECT_GE(got.closest.packet_rays, pure) << isa_name(isa) << " packets of " << p;
+      EXPECT_LT(got.closest.packet_rays, rays.size()) << "the mixed tiles' odd rays go alone";
+    }
+  }
+}
+
 TEST(TracePackets, OtherPacketSizesAreRefused) {
   Scene scene;
   scene.meshes.push_back(make_cube());

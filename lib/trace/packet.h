@@ -33,8 +33,12 @@ struct PacketRays {
 };
 
 // Fills `out` from the rays of `lanes` (box forms already set up). False when they do not share an
-// octant or a reciprocal direction is infinite (zero or denormal component): the interval bounds below
-// assume one finite sign per axis, so such rays go alone. Lanes outside `lanes` copy the first ray.
+// octant, or when on one axis some reciprocal directions are infinite (a zero or denormal component)
+// and the others are not the same infinity: such rays go alone. Lanes outside `lanes` copy the first
+// ray. An axis on which every ray has the same ±inf (an axis-aligned orthographic camera; issue 11:
+// half of gallery's primary rays went alone) keeps the frustum conservative: (plane − o)·inf has the
+// sign of the exact difference, which the interval end o_near / o_far bounds for every ray, and 0·inf
+// = NaN is dropped by vmax/vmin there as in each ray's own test, so that axis then bounds nothing.
 template <int P>
 inline bool make_packet(const detail::BoxRay* box, uint32_t lanes, PacketRays<P>* out) {
   const int first = lowest_bit(lanes);
@@ -46,7 +50,9 @@ inline bool make_packet(const detail::BoxRay* box, uint32_t lanes, PacketRays<P>
     const detail::BoxRay& b = box[lowest_bit(m)];
     if (b.octant != octant) return false;
     for (int a = 0; a < 3; ++a) {
-      if (!(std::fabs(b.rcp[a]) <= FLT_MAX)) return false;
+      const bool finite = std::fabs(b.rcp[a]) <= FLT_MAX;
+      if (finite != (std::fabs(box[first].rcp[a]) <= FLT_MAX) || (!finite && b.rcp[a] != box[first].rcp[a]))
+        return false;
       omin[a] = min_keep(b.org[a], omin[a]), omax[a] = max_keep(b.org[a], omax[a]);
       rmin[a] = min_keep(b.rcp[a], rmin[a]), rmax[a] = max_keep(b.rcp[a], rmax[a]);
     }

@@ -3,7 +3,8 @@
 // points; included by the SIMD translation units after trace_ray.h (through multi_hit.h). The answers
 // equal trace_batch's bit for bit: every lane runs the single-ray box and triangle tests' arithmetic,
 // a closest hit wins by (t, instance, prim) whatever the visit order, and any ray the packet cannot
-// take (invalid, another octant, an infinite reciprocal, a stack overflow) is traced alone.
+// take (invalid, another octant, an infinite reciprocal the packet's others lack, a stack overflow)
+// is traced alone.
 #include <algorithm>
 #include <type_traits>
 
