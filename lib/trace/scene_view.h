@@ -26,8 +26,9 @@ inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t cou
 
 // How an instance record moves a ray, worked out once per view so that walks need not test it per
 // visit (issue 11). kAxes: L^-1 is a signed permutation (translations, axis flips, quarter turns;
-// Lantern, gallery), so org' = ±(org − T)[axis] and dir' = ±dir[axis] exactly as transform_ray's double
-// products give them whenever no component is zero (trace: move_ray_by_axes), and 1/dir' is ±1/dir.
+// Lantern's and BoomBox's nodes), so org' = ±(org − T)[axis] and dir' = ±dir[axis], exactly as
+// transform_ray's double products give them whenever no component is zero (trace: move_ray_by_axes),
+// and 1/dir' is ±1/dir.
 struct AxisMove {
   enum Kind : uint8_t { kGeneral = 0, kNone = 1, kAxes = 2 };  // kNone: T = 0 and L^-1 = I exactly
   uint8_t axis[3];  // row r of L^-1 has its one nonzero entry in column axis[r]
