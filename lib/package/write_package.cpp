@@ -108,9 +108,10 @@ template <int W, int B>
 void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOptions& bo, const SealOptions& so, Job& job) {
   ChunkParts<W, B> parts;
   AttributeChunkBuilder attrs;
-  std::vector<MeshBvh<W, B>> bvhs;
-  bvhs.reserve(seg.meshes.size());
-  for (uint32_t m : seg.meshes) bvhs.push_back(build_mesh_bvh<W, B>(scene.meshes[m], bo));
+  // Each mesh's BVH is independent of the others: built in parallel, each the same for any thread
+  // count (a segment of forest-2k's 12 meshes was one thread's work while the other thread idled).
+  std::vector<MeshBvh<W, B>> bvhs(seg.meshes.size());
+  tbb::parallel_for(size_t(0), seg.meshes.size(), [&](size_t k) { bvhs[k] = build_mesh_bvh<W, B>(scene.meshes[seg.meshes[k]], bo); });
   for (size_t k = 0; k < seg.meshes.size(); ++k) {
     const uint32_t m = seg.meshes[k];
     parts.append(bvhs[k], m, scene.meshes[m].triangle_count());
@@ -135,14 +136,13 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   std::vector<fmt::InstanceRecord> records;
   std::vector<uint32_t> global_ids, slots;
   std::vector<Box3f> boxes;
-  std::vector<MeshBvh<W, B>> bvhs;
-  bvhs.reserve(bp.pieces.size());
-  for (uint32_t k : bp.pieces) {
-    const UniquePiece& piece = plan.pieces[k];
-    bvhs.push_back(build_mesh_bvh<W, B>(piece.mesh, bo));
-    for (auto& blk : bvhs.back().blocks)  // leaves report the triangle's index in the original mesh
+  std::vector<MeshBvh<W, B>> bvhs(bp.pieces.size());  // independent: in parallel, as a segment's
+  tbb::parallel_for(size_t(0), bp.pieces.size(), [&](size_t j) {
+    const UniquePiece& piece = plan.pieces[bp.pieces[j]];
+    bvhs[j] = build_mesh_bvh<W, B>(piece.mesh, bo);
+    for (auto& blk : bvhs[j].blocks)  // leaves report the triangle's index in the original mesh
       for (int l = 0; l < B; ++l) blk.prim[l] = piece.prim[blk.prim[l]];
-  }
+  });
   for (size_t j = 0; j < bp.pieces.size(); ++j) {
     const uint32_t k = bp.pieces[j];
     const UniquePiece& piece = plan.pieces[k];
@@ -385,14 +385,19 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                  build_segment<W, B>(scene, plan.segments[k], o.bvh, seal_opt, p.job);
                                                } else {
                                                  p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
+                                                 // The culling proxy needs no BVH: voxelized beside the point's
+                                                 // chunk, so a large point is not one thread's work end to end.
+                                                 tbb::task_group voxelizing;
+                                                 if (o.dag)
+                                                   voxelizing.run([&] {
+                                                     const auto t0 = std::chrono::steady_clock::now();
+                                                     p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies,
+                                                                                     plan.points[k - n_seg], o.voxel);
+                                                     voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                                     std::chrono::steady_clock::now() - t0).count();
+                                                   });
                                                  build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, seal_opt, p.job);
-                                                 if (o.dag) {
-                                                   const auto t0 = std::chrono::steady_clock::now();
-                                                   p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies,
-                                                                                   plan.points[k - n_seg], o.voxel);
-                                                   voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                                                   std::chrono::steady_clock::now() - t0).count();
-                                                 }
+                                                 voxelizing.wait();
                                                }
                                                if (!p.job.attr_raw.empty())
                                                  p.attr_stored = PackageWriter::compress(
