@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
+#include <random>
 #include <string>
 
 #include "core/error.h"
@@ -476,6 +478,35 @@ TEST(MeshClean, RejectsAttributeSizeMismatch) {
   ok.normals.resize(4);
   ok.uvs.resize(4);
   EXPECT_NO_THROW(clean_mesh(ok));
+}
+
+// The edge counts against their definition (every undirected edge key counted in a map) on soups of
+// random triangles over few vertices, where edges repeat 1 to many times.
+TEST(MeshClean, EdgeCountsMatchTheirDefinitionOnRandomSoups) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 20; ++trial) {
+    const uint32_t nv = 4 + trial * 3;
+    Mesh m;
+    for (uint32_t v = 0; v < nv; ++v) m.positions.push_back({float(v), float(v * v % 7), float(v % 3) + 0.5f * float(v)});
+    std::uniform_int_distribution<uint32_t> pick(0, nv - 1);
+    for (int t = 0; t < 10 + 15 * trial; ++t) {
+      uint32_t a = pick(rng), b = pick(rng), c = pick(rng);
+      if (a == b || b == c || a == c) continue;
+      add_tri(m, a, b, c);
+    }
+    CleanReport r = clean_mesh(m, {.weld_eps = -1, .topology = false});
+    std::map<std::pair<uint32_t, uint32_t>, int> uses;
+    for (size_t t = 0; t < m.indices.size(); t += 3)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = m.indices[t + k], b = m.indices[t + (k + 1) % 3];
+        ++uses[{std::min(a, b), std::max(a, b)}];
+      }
+    uint64_t boundary = 0, nonmanifold = 0;
+    for (const auto& [edge, n] : uses) boundary += n == 1, nonmanifold += n > 2;
+    EXPECT_EQ(r.boundary_edges, boundary) << "trial " << trial;
+    EXPECT_EQ(r.nonmanifold_edges, nonmanifold) << "trial " << trial;
+    EXPECT_GT(nonmanifold + boundary, 0u) << "trial " << trial;
+  }
 }
 
 }}  // namespace

@@ -182,7 +182,8 @@ TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
 
 // compute_world_bounds skips the instances whose root-box bound cannot raise a face already found:
 // on thousands of rotated, scaled and mirrored instances (ties included: copies of one placement, and
-// instances of a mesh without vertices) it must still equal the brute force exactly, for 1 and 2 threads.
+// instances of a mesh without vertices, and meshes of 1 to 4 instances, searched without a split tree)
+// it must still equal the brute force exactly, for 1 and 2 threads.
 TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
@@ -207,6 +208,22 @@ TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
     }
     s.instances.push_back(in);
     if (i % 100 == 0) s.instances.push_back(in);  // the same placement twice
+  }
+  // Meshes with 1..4 instances (searched without a split tree), placed to reach the scene's faces.
+  for (int m = 0; m < 4; ++m) {
+    Mesh mesh;
+    for (int v = 0; v < 300; ++v) mesh.positions.push_back({u(rng) * 3.f, u(rng), u(rng) * 2.f});
+    for (uint32_t t = 0; t + 2 < 300; t += 3) mesh.indices.insert(mesh.indices.end(), {t, t + 1, t + 2});
+    s.meshes.push_back(mesh);
+    for (int k = 0; k <= m; ++k) {
+      Instance in;
+      in.mesh = uint32_t(s.meshes.size() - 1);
+      const double a = u(rng) * 3.2, ca = std::cos(a), sa = std::sin(a);
+      in.transform(0, 0) = float(ca), in.transform(0, 1) = float(-sa), in.transform(1, 0) = float(sa);
+      in.transform(1, 1) = float(ca), in.transform(2, 2) = k % 2 ? -1.f : 1.f;
+      for (int row = 0; row < 3; ++row) in.transform(row, 3) = float((m + 1) * (row == m % 3 ? 7 : -6));
+      s.instances.push_back(in);
+    }
   }
   Aabb brute;
   for (const Instance& in : s.instances)

@@ -143,23 +143,35 @@ class OmErrSilencer {
   }
 };
 
-// Edge incidence by sorting undirected edge keys: boundary = used once, non-manifold = used > 2 times.
+// Edge incidence: boundary = used once, non-manifold = used > 2 times. Edges are bucketed by their
+// smaller vertex (a counting sort, linear) and each bucket's few larger vertices are sorted on their
+// own: the same counts as sorting every edge key, without the O(E log E) sort that was 4 % of a
+// FlightHelmet convert. The indices are valid here (clean_mesh has rebuilt the mesh).
 void count_edges(const Mesh& mesh, CleanReport& report) {
-  std::vector<uint64_t> keys;
-  keys.reserve(mesh.indices.size());
-  for (size_t t = 0; t < mesh.indices.size(); t += 3)
-    for (int k = 0; k < 3; ++k) {
-      uint32_t a = mesh.indices[t + k], b = mesh.indices[t + (k + 1) % 3];
-      if (a > b) std::swap(a, b);
-      keys.push_back(uint64_t(a) << 32 | b);
+  const size_t nv = mesh.positions.size();
+  std::vector<uint32_t> first(nv + 1, 0);
+  auto each_edge = [&](auto&& f) {
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = mesh.indices[t + k], b = mesh.indices[t + (k + 1) % 3];
+        f(std::min(a, b), std::max(a, b));
+      }
+  };
+  each_edge([&](uint32_t a, uint32_t) { ++first[a + 1]; });
+  for (size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
+  std::vector<uint32_t> other(first[nv]), fill(first.begin(), first.end() - 1);
+  each_edge([&](uint32_t a, uint32_t b) { other[fill[a]++] = b; });
+  for (size_t v = 0; v < nv; ++v) {
+    uint32_t* const lo = other.data() + first[v];
+    uint32_t* const hi = other.data() + first[v + 1];
+    std::sort(lo, hi);
+    for (uint32_t* i = lo; i < hi;) {
+      uint32_t* j = i;
+      while (j < hi && *j == *i) ++j;
+      if (j - i == 1) ++report.boundary_edges;
+      if (j - i > 2) ++report.nonmanifold_edges;
+      i = j;
     }
-  std::sort(keys.begin(), keys.end());
-  for (size_t i = 0; i < keys.size();) {
-    size_t j = i;
-    while (j < keys.size() && keys[j] == keys[i]) ++j;
-    if (j - i == 1) ++report.boundary_edges;
-    if (j - i > 2) ++report.nonmanifold_edges;
-    i = j;
   }
 }
 
