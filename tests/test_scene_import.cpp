@@ -182,7 +182,8 @@ TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
 
 // compute_world_bounds skips the instances whose root-box bound cannot raise a face already found:
 // on thousands of rotated, scaled and mirrored instances (ties included: copies of one placement, and
-// instances of a mesh without vertices, and meshes of 1 to 4 instances, searched without a split tree)
+// instances of a mesh without vertices, meshes of 1 to 4 instances, scanned without a tree, and a mesh
+// searched often enough to get one)
 // it must still equal the brute force exactly, for 1 and 2 threads.
 TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
   std::mt19937 rng(7);
@@ -209,7 +210,7 @@ TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
     s.instances.push_back(in);
     if (i % 100 == 0) s.instances.push_back(in);  // the same placement twice
   }
-  // Meshes with 1..4 instances (searched without a split tree), placed to reach the scene's faces.
+  // Meshes with 1..4 instances (scanned, never given a tree), placed to reach the scene's faces.
   for (int m = 0; m < 4; ++m) {
     Mesh mesh;
     for (int v = 0; v < 300; ++v) mesh.positions.push_back({u(rng) * 3.f, u(rng), u(rng) * 2.f});
@@ -222,6 +223,28 @@ TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
       in.transform(0, 0) = float(ca), in.transform(0, 1) = float(-sa), in.transform(1, 0) = float(sa);
       in.transform(1, 1) = float(ca), in.transform(2, 2) = k % 2 ? -1.f : 1.f;
       for (int row = 0; row < 3; ++row) in.transform(row, 3) = float((m + 1) * (row == m % 3 ? 7 : -6));
+      s.instances.push_back(in);
+    }
+  }
+  // A sphere's points, 300 instances at one place on the +x/+y corner, each turned about z: every box
+  // bound (|cos| + |sin| > 1) beats the exact face (1 + translation), so each instance is searched and
+  // the mesh gets its tree.
+  {
+    Mesh mesh;
+    for (int v = 0; v < 600; ++v) {
+      const Vec3d d{u(rng), u(rng), u(rng)};
+      const double len = std::sqrt(dot(d, d)) + 1e-3;
+      mesh.positions.push_back({float(d.x / len), float(d.y / len), float(d.z / len)});
+    }
+    for (uint32_t t = 0; t + 2 < 600; t += 3) mesh.indices.insert(mesh.indices.end(), {t, t + 1, t + 2});
+    s.meshes.push_back(mesh);
+    for (int k = 0; k < 300; ++k) {
+      Instance in;
+      in.mesh = uint32_t(s.meshes.size() - 1);
+      const double a = 0.1 + 0.005 * k, ca = std::cos(a), sa = std::sin(a);
+      in.transform(0, 0) = float(ca), in.transform(0, 1) = float(-sa), in.transform(1, 0) = float(sa);
+      in.transform(1, 1) = float(ca);
+      in.transform(0, 3) = 45.f, in.transform(1, 3) = 45.f;
       s.instances.push_back(in);
     }
   }

@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
 
 #include "scene/scene.h"
@@ -33,69 +35,94 @@ uint64_t Scene::instanced_triangles() const {
 
 namespace {
 
-// A median-split tree over the vertices a mesh's triangles use; leaves of <= 16 points. `split` false
-// keeps them in one leaf: a mesh with few instances is searched at most 6 times per instance, fewer
-// passes over its points than the median splits take (the trees of FlightHelmet's six meshes, one
-// instance each, were 4 % of its convert). The search's answer is the same either way.
-struct PointTree {
-  struct Node { Aabb box; uint32_t begin, end, left, right; };  // left = 0: leaf
-  std::vector<Node> nodes;
-  std::vector<Vec3d> pts;
-
-  explicit PointTree(const Mesh& m, bool split = true) {
+// The vertices a mesh's triangles use, searched for the extreme of a linear function. The first
+// kScansBeforeTree searches scan every point; after that a median-split tree (leaves of <= 16 points,
+// built once, over its own copy of the points) prunes by box bounds. A tree costs about as many passes
+// over the points as kScansBeforeTree scans, so the few meshes searched often get one and the rest
+// never pay for it: FlightHelmet's six meshes (one instance each) and forest-2k's twelve (of which only
+// the instances on the scene's faces are searched) had spent 4 % and 11 % of their converts building
+// trees up front. Scan or tree, the answer is the same exact maximum (+0 for a zero, whichever sign
+// the maximizing product had), so it does not depend on which one a thread happened to use.
+class PointSet {
+ public:
+  explicit PointSet(const Mesh& m) {
     std::vector<uint8_t> used(m.positions.size(), 0);
     for (uint32_t i : m.indices) used[i] = 1;
     for (size_t i = 0; i < used.size(); ++i)
-      if (used[i]) pts.push_back(to_d(m.positions[i]));
-    if (!pts.empty()) build(0, uint32_t(pts.size()), split ? 16 : uint32_t(pts.size()));
+      if (used[i]) pts_.push_back(to_d(m.positions[i])), box_.grow(pts_.back());
   }
-  uint32_t build(uint32_t b, uint32_t e, uint32_t leaf) {
-    const uint32_t id = uint32_t(nodes.size());
-    nodes.push_back({Aabb{}, b, e, 0, 0});
-    Aabb box;
-    for (uint32_t i = b; i < e; ++i) box.grow(pts[i]);
-    nodes[id].box = box;
-    if (e - b > leaf) {
-      const Vec3d ext = box.extent();
-      const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
-      const uint32_t mid = b + (e - b) / 2;
-      std::nth_element(pts.begin() + b, pts.begin() + mid, pts.begin() + e,
-                       [axis](const Vec3d& p, const Vec3d& q) { return p[axis] < q[axis]; });
-      const uint32_t l = build(b, mid, leaf), r = build(mid, e, leaf);
-      nodes[id].left = l;
-      nodes[id].right = r;
-    }
-    return id;
-  }
+  bool empty() const { return pts_.empty(); }
+  const Aabb& box() const { return box_; }
   // max over the box of dot(r, p), evaluated in dot()'s order: rounding is monotone, so it never
   // undercuts a point of the box.
   static double box_bound(const Vec3d& r, const Aabb& b) {
     return std::max(r.x * b.lo.x, r.x * b.hi.x) + std::max(r.y * b.lo.y, r.y * b.hi.y) + std::max(r.z * b.lo.z, r.z * b.hi.z);
   }
-  // max over points of dot(r, p), pruned by box_bound: the result is exact.
+  // max over the points of dot(r, p): exact.
   double support(const Vec3d& r) const {
+    if (!tree_ready_.load(std::memory_order_acquire)) {
+      if (scans_.fetch_add(1, std::memory_order_relaxed) < kScansBeforeTree) {
+        double best = -std::numeric_limits<double>::infinity();
+        for (const Vec3d& p : pts_) best = std::max(best, dot(r, p));
+        return best + 0.0;
+      }
+      std::call_once(once_, [this] {
+        tree_pts_ = pts_;
+        build(0, uint32_t(tree_pts_.size()));
+        tree_ready_.store(true, std::memory_order_release);
+      });
+    }
     double best = -std::numeric_limits<double>::infinity();
     uint32_t stack[128];
     int sp = 0;
     stack[sp++] = 0;
     while (sp) {
-      const Node& n = nodes[stack[--sp]];
+      const Node& n = nodes_[stack[--sp]];
       if (box_bound(r, n.box) <= best) continue;
       if (!n.left) {
-        for (uint32_t i = n.begin; i < n.end; ++i) best = std::max(best, dot(r, pts[i]));
+        for (uint32_t i = n.begin; i < n.end; ++i) best = std::max(best, dot(r, tree_pts_[i]));
       } else {
         stack[sp++] = n.right;
         stack[sp++] = n.left;
       }
     }
-    return best;
+    return best + 0.0;
   }
+
+ private:
+  static constexpr uint32_t kScansBeforeTree = 32;
+  struct Node { Aabb box; uint32_t begin, end, left, right; };  // left = 0: leaf
+  uint32_t build(uint32_t b, uint32_t e) const {  // once, under once_
+    const uint32_t id = uint32_t(nodes_.size());
+    nodes_.push_back({Aabb{}, b, e, 0, 0});
+    Aabb box;
+    for (uint32_t i = b; i < e; ++i) box.grow(tree_pts_[i]);
+    nodes_[id].box = box;
+    if (e - b > 16) {
+      const Vec3d ext = box.extent();
+      const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+      const uint32_t mid = b + (e - b) / 2;
+      std::nth_element(tree_pts_.begin() + b, tree_pts_.begin() + mid, tree_pts_.begin() + e,
+                       [axis](const Vec3d& p, const Vec3d& q) { return p[axis] < q[axis]; });
+      const uint32_t l = build(b, mid), r = build(mid, e);
+      nodes_[id].left = l;
+      nodes_[id].right = r;
+    }
+    return id;
+  }
+  std::vector<Vec3d> pts_;
+  Aabb box_;
+  mutable std::atomic<uint32_t> scans_{0};
+  mutable std::atomic<bool> tree_ready_{false};
+  mutable std::once_flag once_;
+  mutable std::vector<Node> nodes_;
+  mutable std::vector<Vec3d> tree_pts_;
 };
 
 // World bounds of one instance of the mesh whose point tree is `t`.
-Aabb instance_bounds(const PointTree& t, const Instance& inst) {
+Aabb instance_bounds(const PointSet& t, const Instance& inst) {
   Aabb acc;
-  if (t.pts.empty()) return acc;
+  if (t.empty()) return acc;
   for (int row = 0; row < 3; ++row) {
     const Vec3d w{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)};
     const double tr = inst.transform(row, 3);
@@ -108,12 +135,12 @@ Aabb instance_bounds(const PointTree& t, const Instance& inst) {
 // One face of an instance's world box, as a maximum: side 0..2 = hi[row], 3..5 = -lo[row]. `exact`
 // runs the branch and bound; otherwise the root box's bound, which is never below the exact value
 // (same evaluation order, monotone rounding).
-double side_value(const PointTree& t, const Instance& inst, int side, bool exact) {
+double side_value(const PointSet& t, const Instance& inst, int side, bool exact) {
   const int row = side % 3;
   const double sign = side < 3 ? 1.0 : -1.0;
   const Vec3d w = Vec3d{inst.transform(row, 0), inst.transform(row, 1), inst.transform(row, 2)} * sign;
   const double tr = inst.transform(row, 3);
-  const double s = exact ? t.support(w) : PointTree::box_bound(w, t.nodes[0].box);
+  const double s = exact ? t.support(w) : PointSet::box_bound(w, t.box());
   // hi = support(w) + tr; lo = -support(-w) + tr, so -lo = support(-w) - tr (negation is exact).
   return side < 3 ? s + tr : s - tr;
 }
@@ -122,20 +149,15 @@ double side_value(const PointTree& t, const Instance& inst, int side, bool exact
 
 Aabb compute_instance_world_bounds(const Scene& scene, size_t instance) {
   const Instance& inst = scene.instances[instance];
-  return instance_bounds(PointTree(scene.meshes[inst.mesh], false), inst);  // one instance: flat
+  return instance_bounds(PointSet(scene.meshes[inst.mesh]), inst);
 }
 
 Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t, uint64_t)>& progress) {
-  // One point tree per mesh, built in parallel (each is independent).
-  // Split only for meshes with more than kFlatInstances instances.
-  constexpr uint32_t kFlatInstances = 4;
-  std::vector<uint32_t> uses(scene.meshes.size(), 0);
-  for (const Instance& in : scene.instances) uses[in.mesh] += uses[in.mesh] <= kFlatInstances;
-  std::vector<std::unique_ptr<PointTree>> trees(scene.meshes.size());
-  tbb::parallel_for(size_t(0), scene.meshes.size(),
-                    [&](size_t m) { trees[m] = std::make_unique<PointTree>(scene.meshes[m], uses[m] > kFlatInstances); });
+  // One point set per mesh, made in parallel (each is independent).
+  std::vector<std::unique_ptr<PointSet>> trees(scene.meshes.size());
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { trees[m] = std::make_unique<PointSet>(scene.meshes[m]); });
   const size_t n = scene.instances.size();
-  auto usable = [&](size_t i) { return !trees[scene.instances[i].mesh]->pts.empty(); };
+  auto usable = [&](size_t i) { return !trees[scene.instances[i].mesh]->empty(); };
   constexpr double kNone = -std::numeric_limits<double>::infinity();
   // Branch and bound over the instances too, one face of the scene box at a time: the scene's face is
   // the maximum of the instances' exact faces, and an instance whose root-box bound does not exceed an
@@ -163,7 +185,7 @@ Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t,
         [&](const tbb::blocked_range<size_t>& r, double best) {
           for (size_t i = r.begin(); i != r.end(); ++i) {
             if (!usable(i)) continue;
-            const PointTree& t = *trees[scene.instances[i].mesh];
+            const PointSet& t = *trees[scene.instances[i].mesh];
             if (side_value(t, scene.instances[i], side, false) <= best) continue;
             best = std::max(best, side_value(t, scene.instances[i], side, true));
           }
