@@ -108,7 +108,7 @@ TEST_F(ConvertProgress, VerboseAddsStageLinesAndTheDefaultDoesNot) {
   const ToolResult v = run_tool("rtpack-convert", {forest.string(), "-v", "--threads", "1", "-o", (dir / "v.rtp").string()}, dir, {}, 300);
   ASSERT_EQ(v.code, 0) << v.err;
   for (const char* s : {"stage import", "stage prepare", "stage batching points", "stage chunks", "peak RSS",
-                        "settings: 1 threads, W=8, B=8, zstd level 3"})
+                        "settings: 1 threads, W=8, B=8, zstd level 2"})
     EXPECT_NE(v.err.find(s), std::string::npos) << s << "\n" << v.err;
   const ToolResult d = run_tool("rtpack-convert", {forest.string(), "-o", (dir / "d.rtp").string()}, dir, {}, 300);
   ASSERT_EQ(d.code, 0) << d.err;

@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
                "decompressed about 1.4x faster when tracing out of core; docs/trace/budget.md)");
   int leaf_min_match = rtp::kDefaultLeafMinMatch;
   app.add_option("--zstd-leaf-min-match", leaf_min_match,
-                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (5 at level 3) "
+                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (5 at levels 2 and 3) "
                  "(default " + std::to_string(rtp::kDefaultLeafMinMatch) + ": about 16 % larger there than 0, decompressed about 1.5x "
                  "faster when tracing out of core; docs/package/zstd.md)")
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}));

@@ -14,13 +14,14 @@
 
 namespace rtp {
 
-// The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd) when every
-// chunk had Huffman-coded literals: of the levels within 6 % of level 9's bytes on every scene, level 3
-// had the fastest chunks stage (about half of level 9's). With raw literals and a minimum match of 7 in
-// the leaf-block chunks, level 3 stores 12-14 % more than level 9 and the chart's rule picks level 6
-// (chunks stage 1.2-1.4x level 3's); the default stays 3, the faster convert (issue 12's goal), whose
-// loads out of core are as fast.
-inline constexpr int kDefaultZstdLevel = 3;
+// The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd): the level
+// with the least time to make a package and read it once from a 100 MB/s disk (convert + load + bytes /
+// 100 MB/s) over FlightHelmet and forest-2k. Level 2 stores 1.7-1.9 % more than level 3 (which zstd runs
+// with larger match tables) and converts faster (chunks stage 0.083 s against 0.094 s on FlightHelmet,
+// 0.184 s against 0.208 s on forest-2k, one thread) with loads as fast; level 3 pays off only after
+// about 11 reads of the whole package from that disk. Levels 6 and 9 store 11-14 % less at 1.6-2.5x
+// level 2's chunks stage.
+inline constexpr int kDefaultZstdLevel = 2;
 // zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
 // choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
 // sequence to decode. On unique-50m's batching points (232 MB, one thread, raw literals): 5 → ratio
@@ -40,7 +41,7 @@ struct ConvertOptions {
   // Chunks of instance BVHs and records keep Huffman literals (raw ones made forest-1m 7.5 % larger for
   // nothing: its loads are small). --zstd-huffman-literals turns it off everywhere.
   bool zstd_raw_literals = true;
-  // The same chunks' shortest zstd match (3..7; 0: the level's own, 5 at level 3): 16 % more bytes in
+  // The same chunks' shortest zstd match (3..7; 0: the level's own, 5 at levels 2 and 3): 16 % more bytes in
   // them, decompressed 1.5x faster (kDefaultLeafMinMatch). --zstd-leaf-min-match 0 restores the level's.
   int zstd_leaf_min_match = kDefaultLeafMinMatch;
   bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
