@@ -338,21 +338,21 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   }
 
   // Objects, in instance order: an instance of an instanced mesh is one object (the boxes computed in
-  // parallel below), the single instance of a unique mesh one per piece (split here, serially, so that
-  // the pieces are numbered in instance order).
+  // parallel below), the single instance of a unique mesh one per piece. The unique meshes are split
+  // in parallel (each on its own), then their pieces are numbered serially in instance order.
   std::vector<Aabb> local(scene.meshes.size());
-  for (size_t m = 0; m < scene.meshes.size(); ++m) local[m] = scene.meshes[m].local_bounds();
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { local[m] = scene.meshes[m].local_bounds(); });
   const uint64_t piece_max = std::max<uint64_t>(1, uint64_t(double(plan.chunk_target) * opt.piece_fraction));
   const size_t n_inst = scene.instances.size();
   std::vector<size_t> first(n_inst + 1, 0);  // instance i's objects: [first[i], first[i + 1])
-  std::vector<std::pair<size_t, std::vector<Object>>> unique_objs;
-  for (size_t i = 0; i < n_inst; ++i) {
+  std::vector<size_t> unique_inst;
+  for (size_t i = 0; i < n_inst; ++i)
+    if (!plan.mesh_instanced[scene.instances[i].mesh]) unique_inst.push_back(i);
+  std::vector<std::vector<UniquePiece>> split(unique_inst.size());
+  tbb::parallel_for(size_t(0), unique_inst.size(), [&](size_t u) {
+    const size_t i = unique_inst[u];
     const Instance& in = scene.instances[i];
     const Mesh& src = scene.meshes[in.mesh];
-    if (plan.mesh_instanced[in.mesh]) {
-      first[i + 1] = first[i] + 1;
-      continue;
-    }
     // The single instance of a unique mesh, split into pieces that stay in the mesh's local space
     // (with the instance's transform: no precision lost far from the origin). The source map
     // temporarily carries the original triangle index through split_mesh.
@@ -363,7 +363,6 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
       parts = split_mesh(local_copy, uint32_t(std::min<uint64_t>(piece_max, 0xffffffffu)));
     else
       parts.push_back(std::move(local_copy));
-    std::vector<Object> mine;
     for (Mesh& part : parts) {
       UniquePiece piece;
       piece.instance = uint32_t(i);
@@ -373,13 +372,25 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
         part.source[t] = src.source[piece.prim[t]];
       }
       piece.mesh = std::move(part);
+      split[u].push_back(std::move(piece));
+    }
+  });
+  std::vector<std::pair<size_t, std::vector<Object>>> unique_objs;
+  for (size_t i = 0, u = 0; i < n_inst; ++i) {
+    if (plan.mesh_instanced[scene.instances[i].mesh]) {
+      first[i + 1] = first[i] + 1;
+      continue;
+    }
+    std::vector<Object> mine;
+    for (UniquePiece& piece : split[u]) {
       Object o;
-      o.box = instance_bounds(scene, in, piece.mesh.local_bounds());
+      o.box = instance_bounds(scene, scene.instances[i], piece.mesh.local_bounds());
       o.weight = piece.mesh.triangle_count();
       o.piece = uint32_t(plan.pieces.size());
       plan.pieces.push_back(std::move(piece));
       mine.push_back(o);
     }
+    ++u;
     first[i + 1] = first[i] + mine.size();
     unique_objs.emplace_back(i, std::move(mine));
   }
