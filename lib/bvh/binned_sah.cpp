@@ -237,9 +237,13 @@ Split Splitter::find(const Range& r) const {
   std::array<uint32_t, kMaxBins> right_count{}, idx{};
   for (int a = 0; a < 3; ++a) {
     if (!map.usable[a]) continue;
+    // Branch-free: which bins are empty is data, and a mispredicted branch per bin was 30 % of this
+    // function's samples on FlightHelmet.
     uint32_t m = 0;
-    for (uint32_t i = 0; i < nb; ++i)
-      if (bins.count[a][i]) idx[m++] = i;
+    for (uint32_t i = 0; i < nb; ++i) {
+      idx[m] = i;
+      m += bins.count[a][i] != 0;
+    }
     VBox acc;
     uint32_t cnt = 0;
     for (uint32_t j = m; j-- > 1;) {
