@@ -66,14 +66,14 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"normal", "uv"}));
   app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) +
-                                                 "; 6: 3.5-5 % smaller, chunks stage 1.2-1.5x slower; 19: about 25 % smaller, 15-20x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
+                                                 "; 6: 11-12 % smaller, chunks stage 1.5-1.7x slower; 19: 20-22 % smaller, 12-28x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
   bool huffman_literals = false;
   app.add_flag("--zstd-huffman-literals", huffman_literals,
                "Huffman-code zstd's literals in batching points and mesh segments too (default: raw there, 4 % larger, "
                "decompressed about 1.4x faster when tracing out of core; docs/trace/budget.md)");
   int leaf_min_match = rtp::kDefaultLeafMinMatch;
   app.add_option("--zstd-leaf-min-match", leaf_min_match,
-                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (5 at levels 2 and 3) "
+                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (level 3: 5; level 2: 5 or 6 by chunk size) "
                  "(default " + std::to_string(rtp::kDefaultLeafMinMatch) + ": about 16 % larger there than 0, decompressed about 1.5x "
                  "faster when tracing out of core; docs/package/zstd.md)")
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}));

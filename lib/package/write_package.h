@@ -16,11 +16,12 @@ namespace rtp {
 
 // The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd): the level
 // with the least time to make a package and read it once from a 100 MB/s disk (convert + load + bytes /
-// 100 MB/s) over FlightHelmet and forest-2k. Level 2 stores 1.7-1.9 % more than level 3 (which zstd runs
-// with larger match tables) and converts faster (chunks stage 0.083 s against 0.094 s on FlightHelmet,
-// 0.184 s against 0.208 s on forest-2k, one thread) with loads as fast; level 3 pays off only after
-// about 11 reads of the whole package from that disk. Levels 6 and 9 store 11-14 % less at 1.6-2.5x
-// level 2's chunks stage.
+// 100 MB/s) over FlightHelmet and forest-2k, times within 3 % of the least counting as a tie that the
+// smaller package wins. Levels 1 and 2 tie (their order flips between runs); level 2 stores 2 % less
+// than level 1 and 1.7-1.9 % more than level 3, whose double-fast matcher (level 2: zstd's fast one)
+// costs a slower convert (chunks stage 0.077 s against 0.087 s on FlightHelmet, 0.171 s against
+// 0.189 s on forest-2k, one thread) and pays off only after about 12 reads of the whole package from
+// that disk. Levels 6 and 9 store 11-14 % less at 1.5-2.3x level 2's chunks stage.
 inline constexpr int kDefaultZstdLevel = 2;
 // zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
 // choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
@@ -41,8 +42,9 @@ struct ConvertOptions {
   // Chunks of instance BVHs and records keep Huffman literals (raw ones made forest-1m 7.5 % larger for
   // nothing: its loads are small). --zstd-huffman-literals turns it off everywhere.
   bool zstd_raw_literals = true;
-  // The same chunks' shortest zstd match (3..7; 0: the level's own, 5 at levels 2 and 3): 16 % more bytes in
-  // them, decompressed 1.5x faster (kDefaultLeafMinMatch). --zstd-leaf-min-match 0 restores the level's.
+  // The same chunks' shortest zstd match (3..7; 0: the level's own: level 3's 5, level 2's 5 or 6 by
+  // chunk size): 16 % more bytes in them than level 3's 5, decompressed 1.5x faster (kDefaultLeafMinMatch,
+  // measured at level 3). --zstd-leaf-min-match 0 restores the level's.
   int zstd_leaf_min_match = kDefaultLeafMinMatch;
   bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
   voxel::VoxelOptions voxel;   // resolution (0 = per point), thin (tests only)
