@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "mesh/mesh.h"
 
 namespace rtp {
@@ -349,7 +350,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   for (size_t i = 0; i < n_inst; ++i)
     if (!plan.mesh_instanced[scene.instances[i].mesh]) unique_inst.push_back(i);
   std::vector<std::vector<UniquePiece>> split(unique_inst.size());
-  tbb::parallel_for(size_t(0), unique_inst.size(), [&](size_t u) {
+  parallel_for_lowest_error(unique_inst.size(), [&](size_t u) {  // errors: the first instance's, as in a serial loop
     const size_t i = unique_inst[u];
     const Instance& in = scene.instances[i];
     const Mesh& src = scene.meshes[in.mesh];

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <memory>
 
+#include "core/parallel.h"
 #include "formats/dag.h"
 #include "reader/chunk_io.h"
 #include "package/package.h"
@@ -111,7 +112,7 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
   // Each mesh's BVH is independent of the others: built in parallel, each the same for any thread
   // count (a segment of forest-2k's 12 meshes was one thread's work while the other thread idled).
   std::vector<MeshBvh<W, B>> bvhs(seg.meshes.size());
-  tbb::parallel_for(size_t(0), seg.meshes.size(), [&](size_t k) { bvhs[k] = build_mesh_bvh<W, B>(scene.meshes[seg.meshes[k]], bo); });
+  parallel_for_lowest_error(seg.meshes.size(), [&](size_t k) { bvhs[k] = build_mesh_bvh<W, B>(scene.meshes[seg.meshes[k]], bo); });
   for (size_t k = 0; k < seg.meshes.size(); ++k) {
     const uint32_t m = seg.meshes[k];
     parts.append(bvhs[k], m, scene.meshes[m].triangle_count());
@@ -137,7 +138,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
   std::vector<uint32_t> global_ids, slots;
   std::vector<Box3f> boxes;
   std::vector<MeshBvh<W, B>> bvhs(bp.pieces.size());  // independent: in parallel, as a segment's
-  tbb::parallel_for(size_t(0), bp.pieces.size(), [&](size_t j) {
+  parallel_for_lowest_error(bp.pieces.size(), [&](size_t j) {
     const UniquePiece& piece = plan.pieces[bp.pieces[j]];
     bvhs[j] = build_mesh_bvh<W, B>(piece.mesh, bo);
     for (auto& blk : bvhs[j].blocks)  // leaves report the triangle's index in the original mesh

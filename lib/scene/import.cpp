@@ -11,6 +11,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "scene/gltf_internal.h"
 
 namespace rtp {
@@ -65,16 +66,9 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   for (auto& [g, _] : used) order.push_back(g);
   std::vector<Mesh> built(order.size());
   std::vector<std::vector<std::string>> mesh_warnings(order.size());
-  std::vector<std::exception_ptr> errors(order.size());
-  tbb::parallel_for(size_t(0), order.size(), [&](size_t i) {
-    try {
-      built[i] = gltf::build_mesh(doc.model, int(order[i]), mesh_warnings[i], options.normals, options.uvs);
-    } catch (...) {
-      errors[i] = std::current_exception();
-    }
+  parallel_for_lowest_error(order.size(), [&](size_t i) {  // the first error in file order
+    built[i] = gltf::build_mesh(doc.model, int(order[i]), mesh_warnings[i], options.normals, options.uvs);
   });
-  for (auto& e : errors)  // the first error in file order, whatever the thread timing
-    if (e) std::rethrow_exception(e);
   for (size_t i = 0; i < order.size(); ++i) {
     doc.warnings.insert(doc.warnings.end(), mesh_warnings[i].begin(), mesh_warnings[i].end());
     if (built[i].triangle_count() == 0) {
