@@ -36,11 +36,14 @@ PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
     kept.push_back(std::move(scene.meshes[m]));
   }
   scene.meshes = std::move(kept);
-  std::vector<Instance> inst;
-  inst.reserve(scene.instances.size());
-  for (Instance i : scene.instances)
-    if ((i.mesh = remap[i.mesh]) != kNoIndex) inst.push_back(i);
-  scene.instances = std::move(inst);
+  // In place, and not at all when no mesh was dropped: a copy of 10^6 instances is ~0.4 s of page
+  // faults and memmove on the forest.
+  if (rep.meshes_emptied) {
+    size_t out = 0;
+    for (Instance& i : scene.instances)
+      if ((i.mesh = remap[i.mesh]) != kNoIndex) scene.instances[out++] = i;
+    scene.instances.resize(out);
+  }
 
   if (opt.subdivide_levels > 0 && opt.subdivide_to > 0)
     throw Error(ExitCode::kUsage, "--subdivide and --subdivide-to exclude each other");
