@@ -72,10 +72,11 @@ Answers run(const SceneView<W, B>& view, const std::vector<fmt::Ray>& rays, cons
 
 // Every SIMD ISA and packet size against that ISA's single rays, ray by ray; at least `min_packet_share`
 // of the rays went in packets, and their SIMD utilization (active rays per packet node test / P) is at
-// least `above_floor` beyond the floor 3/P that the rule of kPacketMinActive (3) alone guarantees.
+// least `above_floor` beyond the floor 3/P that the rule of kPacketMinActive (3) alone guarantees;
+// with `packet_leaves`, closest-hit leaves were also tested by whole packets (triangle_packet.h).
 template <int W, int B>
 void expect_packets_equal_single(const SceneView<W, B>& view, const std::vector<fmt::Ray>& rays, const std::string& what,
-                                 double above_floor, double min_packet_share) {
+                                 double above_floor, double min_packet_share, bool packet_leaves = false) {
   for (Isa isa : simd_isas()) {
     const Answers single = run<W, B>(view, rays, {isa, TraversalOrder::kOctantStack, 0});
     EXPECT_EQ(single.closest.packets, 0u);
@@ -107,6 +108,7 @@ void expect_packets_equal_single(const SceneView<W, B>& view, const std::vector<
       std::printf("%s: SIMD utilization %.1f%%, %.1f%% of the rays in packets\n", path.c_str(), 100 * utilization,
                   100.0 * double(got.closest.packet_rays) / double(rays.size()));
       EXPECT_GT(got.any.packets, 0u) << path;
+      if (packet_leaves) EXPECT_GT(got.closest.packet_triangle_tests, 0u) << path << ": no leaf tested by a packet";
     }
   }
 }
@@ -124,10 +126,10 @@ TEST(TracePackets, CameraTilesOnARealSampleEqualSingleRays) {
   const InCoreScene<4, 4> w4 = InCoreScene<4, 4>::build(scene);
   const InCoreScene<16, 8> w16 = InCoreScene<16, 8>::build(scene);
   // Shadow rays toward one light from scattered hits are less coherent: fewer go in packets.
-  expect_packets_equal_single<8, 8>(base.view(), primary, "FlightHelmet primary", 0.1, 0.9);
+  expect_packets_equal_single<8, 8>(base.view(), primary, "FlightHelmet primary", 0.1, 0.9, true);
   expect_packets_equal_single<8, 8>(base.view(), shadow, "FlightHelmet shadow", 0.0, 0.1);
-  expect_packets_equal_single<4, 4>(w4.view(), primary, "FlightHelmet primary", 0.1, 0.9);
-  expect_packets_equal_single<16, 8>(w16.view(), primary, "FlightHelmet primary", 0.1, 0.9);
+  expect_packets_equal_single<4, 4>(w4.view(), primary, "FlightHelmet primary", 0.1, 0.9, true);
+  expect_packets_equal_single<16, 8>(w16.view(), primary, "FlightHelmet primary", 0.1, 0.9, true);
   expect_packets_equal_single<16, 8>(w16.view(), shadow, "FlightHelmet shadow", 0.0, 0.1);
 }
 

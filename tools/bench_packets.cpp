@@ -137,6 +137,7 @@ int run_packet_bench(PacketBenchConfig cfg) {
                          {"rtpack_mrays", mr / secs}, {"embree_mrays", mr / embree_secs}, {"ratio", embree_secs / secs},
                          {"simd_utilization", util}, {"packet_ray_share", share}, {"packets", st.packets},
                          {"packet_node_tests", st.packet_node_tests}, {"packet_single_walks", st.packet_single_walks},
+                         {"packet_triangle_tests", st.packet_triangle_tests},
                          {"same_as_single_rays", same}, {"failures", agree.failures}});
     }
   }

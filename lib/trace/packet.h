@@ -18,7 +18,7 @@ inline constexpr int kPacketMinActive = 3;
 
 // What packets did, for TraceStats: SIMD utilization = active_lanes / (node_tests · P) (Wu 2016 §4.2.1).
 struct PacketCounters {
-  uint64_t node_tests = 0, active_lanes = 0, single_walks = 0;
+  uint64_t node_tests = 0, active_lanes = 0, single_walks = 0, triangle_tests = 0;
 };
 
 // The packet's rays in one level's space as the per-child lane test reads them (SoA, one lane per

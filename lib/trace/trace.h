@@ -34,12 +34,15 @@ struct TraceStats {
   // With TraceOptions::packet: packets traced and their rays (the others went alone: invalid, another
   // octant than the packet's first ray, too few), node tests by packets and the active rays summed over
   // them (SIMD utilization = packet_active_lanes / (packet_node_tests · packet size), Wu 2016 §4.2.1),
-  // and subtrees rays finished alone after their packet thinned out.
+  // and subtrees rays finished alone after their packet thinned out; closest-hit leaf triangles tested
+  // by a whole packet at once (Wu 2016 §2.3) rather than ray by ray.
   uint64_t packets = 0, packet_rays = 0, packet_node_tests = 0, packet_active_lanes = 0, packet_single_walks = 0;
+  uint64_t packet_triangle_tests = 0;
   void add(const TraceStats& o) {
     rays += o.rays, invalid_rays += o.invalid_rays, overflow_rays += o.overflow_rays;
     packets += o.packets, packet_rays += o.packet_rays, packet_node_tests += o.packet_node_tests;
     packet_active_lanes += o.packet_active_lanes, packet_single_walks += o.packet_single_walks;
+    packet_triangle_tests += o.packet_triangle_tests;
   }
 };
 

@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "trace/packet.h"
+#include "trace/triangle_packet.h"
 #include "trace/trace_ray.h"
 
 namespace rtp::RTP_ISA_NS {
@@ -49,8 +50,41 @@ inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, fl
   const PacketRays<P>& pr = ready ? *ready : own;
   detail::TriRay tri[P];
   uint32_t tri_ready = 0;
+  // Closest-hit leaves with most of the packet's rays: triangle by triangle for all of them (Wu 2016
+  // §2.3), when the rays share their shear axes; set up once per mesh visit, at the first such leaf.
+  PacketTriRays<P> ptri;
+  int ptri_state = 0;  // 0: not set up, 1: usable, 2: the rays' axes differ
   auto leaf = [&](uint32_t ref, uint32_t rays) {
     const uint32_t b0 = fmt::ChildRef::first_block(ref), nb = fmt::ChildRef::block_count(ref);
+    if constexpr (std::is_same_v<Sink, ClosestSink>) {
+      if (2 * bit_count(rays) >= P && ptri_state != 2) {
+        if (ptri_state == 0) {
+          for (uint32_t m = mask & ~tri_ready; m; m &= m - 1) {
+            const int lane = lowest_bit(m);
+            setup_tri_ray(org[lane], dir[lane], L.ray[lane].tnear, &tri[lane]);
+          }
+          tri_ready |= mask;
+          ptri_state = make_packet_tri<P>(tri, mask, &ptri) ? 1 : 2;
+        }
+        if (ptri_state == 1) {
+          alignas(64) float t[P], u[P], v[P];
+          for (uint32_t b = b0; b < b0 + nb; ++b) {
+            const fmt::LeafBlock<B>& blk = mesh.blocks[b];
+            for (int j = 0; j < B; ++j) {
+              if (j > 0 && repeats_previous(blk, j)) continue;  // a short block's padding: the same hit again
+              ++pc.triangle_tests;
+              for (uint32_t m = packet_triangle_test<typename K::template Vec<P>, P, B>(blk, j, ptri, L.tfar, rays, t, u, v); m;
+                   m &= m - 1) {
+                const int lane = lowest_bit(m);
+                L.sink[lane].offer(t[lane], id, blk.prim[j], u[lane], v[lane]);
+                L.sync(lane);
+              }
+            }
+          }
+          return;
+        }
+      }
+    }
     for (uint32_t m = rays; m; m &= m - 1) {
       const int lane = lowest_bit(m);
       if (!(tri_ready >> lane & 1u)) setup_tri_ray(org[lane], dir[lane], L.ray[lane].tnear, &tri[lane]), tri_ready |= 1u << lane;
@@ -179,6 +213,7 @@ inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* 
   stats.packet_node_tests = pc.node_tests;
   stats.packet_active_lanes = pc.active_lanes;
   stats.packet_single_walks = pc.single_walks;
+  stats.packet_triangle_tests = pc.triangle_tests;
   return stats;
 }
 

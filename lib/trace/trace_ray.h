@@ -44,12 +44,15 @@ struct ClosestSink {
     BlockHits<B> h;
     for (uint32_t m = K::template block<B>(blk, tri, best.t, &h); m; m &= m - 1) {
       const int i = lowest_bit(m);
-      const float t = h.t[i];
       const uint32_t prim = blk.prim[i];
-      if (t < best.t || (t == best.t && (id < best.instance || (id == best.instance && prim < best.prim))))
-        best = {t, id, prim, h.u[i], h.v[i]};
+      offer(h.t[i], id, prim, h.u[i], h.v[i]);
     }
     return Walk::kDone;
+  }
+  // The closest hit by (t, instance, prim), whatever the order hits are offered in.
+  RTP_KERNEL_INLINE void offer(float t, uint32_t id, uint32_t prim, float u, float v) {
+    if (t < best.t || (t == best.t && (id < best.instance || (id == best.instance && prim < best.prim))))
+      best = {t, id, prim, u, v};
   }
 };
 

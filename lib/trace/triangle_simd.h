@@ -9,6 +9,39 @@
 
 namespace rtp::RTP_ISA_NS {
 
+// The sheared vertices relative to the ray and the edge functions of Woop, Benthin, Wald 2013 §3, with
+// the lanes whose signs are not trusted (|u| within its float rounding bound of 0, and so on): those
+// take the whole test in double (triangle_double), as the scalar kernel. Shared by the block test
+// (lanes = triangles) and the packet test (lanes = rays, triangle_packet.h): the same operations in the
+// same order, so both give each (ray, triangle) pair the same bits.
+template <class V>
+struct Sheared {
+  V ax0, ay0, az, bz, cz, ax, ay, bx, by, cx, cy, u, v, w;
+  uint32_t slow;
+};
+template <class V>
+RTP_KERNEL_INLINE Sheared<V> shear(V p0x, V p0y, V p0z, V p1x, V p1y, V p1z, V p2x, V p2y, V p2z, V ox, V oy, V oz,
+                                   V sx, V sy) {
+  Sheared<V> e;
+  e.az = p0z - oz, e.bz = p1z - oz, e.cz = p2z - oz;
+  e.ax0 = p0x - ox, e.ay0 = p0y - oy;
+  e.ax = e.ax0 - sx * e.az;
+  e.ay = e.ay0 - sy * e.az;
+  e.bx = (p1x - ox) - sx * e.bz;
+  e.by = (p1y - oy) - sy * e.bz;
+  e.cx = (p2x - ox) - sx * e.cz;
+  e.cy = (p2y - oy) - sy * e.cz;
+  e.u = e.cx * e.by - e.cy * e.bx;
+  e.v = e.ax * e.cy - e.ay * e.cx;
+  e.w = e.bx * e.ay - e.by * e.ax;
+  const V kb = V::splat(kEdgeBound);
+  const V eu = kb * (vabs(e.cx * e.by) + vabs(e.cy * e.bx));
+  const V ev = kb * (vabs(e.ax * e.cy) + vabs(e.ay * e.cx));
+  const V ew = kb * (vabs(e.bx * e.ay) + vabs(e.by * e.ax));
+  e.slow = ((vabs(e.u) <= eu) | (vabs(e.v) <= ev) | (vabs(e.w) <= ew)).bits();
+  return e;
+}
+
 // Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3: shear by the dominant axis,
 // edge functions, the whole test in double for the lanes where one is within its float rounding bound
 // of 0 (triangle_double, scalar),
@@ -27,23 +60,10 @@ RTP_KERNEL_INLINE uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, cons
     const V p0x = V::load(&blk.v0[kx][off]), p0y = V::load(&blk.v0[ky][off]), p0z = V::load(&blk.v0[kz][off]);
     const V p1x = V::load(&blk.v1[kx][off]), p1y = V::load(&blk.v1[ky][off]), p1z = V::load(&blk.v1[kz][off]);
     const V p2x = V::load(&blk.v2[kx][off]), p2y = V::load(&blk.v2[ky][off]), p2z = V::load(&blk.v2[kz][off]);
-    const V az = p0z - oz, bz = p1z - oz, cz = p2z - oz;
-    const V ax0 = p0x - ox, ay0 = p0y - oy;
-    const V ax = ax0 - sx * az;
-    const V ay = ay0 - sy * az;
-    const V bx = (p1x - ox) - sx * bz;
-    const V by = (p1y - oy) - sy * bz;
-    const V cx = (p2x - ox) - sx * cz;
-    const V cy = (p2y - oy) - sy * cz;
-    V u = cx * by - cy * bx;
-    V v = ax * cy - ay * cx;
-    V w = bx * ay - by * ax;
-    const V kb = V::splat(kEdgeBound);
-    const V eu = kb * (vabs(cx * by) + vabs(cy * bx));
-    const V ev = kb * (vabs(ax * cy) + vabs(ay * cx));
-    const V ew = kb * (vabs(bx * ay) + vabs(by * ax));
-    // Lanes whose sign is not trusted: the whole test in double (triangle_double), as the scalar kernel.
-    const uint32_t slow = ((vabs(u) <= eu) | (vabs(v) <= ev) | (vabs(w) <= ew)).bits();
+    const Sheared<V> e = shear(p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, ox, oy, oz, sx, sy);
+    const V &ax0 = e.ax0, &ay0 = e.ay0, &az = e.az, &bz = e.bz, &cz = e.cz;
+    const V &ax = e.ax, &ay = e.ay, &bx = e.bx, &by = e.by, &cx = e.cx, &cy = e.cy, &u = e.u, &v = e.v, &w = e.w;
+    const uint32_t slow = e.slow;
     const auto inside = ((u >= zero) & (v >= zero) & (w >= zero)) | ((u <= zero) & (v <= zero) & (w <= zero));
     if (!(inside.bits() & ~slow) && !slow) continue;
     const V det = (u + v) + w;
