@@ -102,6 +102,28 @@ TEST(Cluster, GallerySmallTargetManyPoints) {
   check_plan(s, p);
 }
 
+// The default segment target comes from the instanced meshes' own triangles, not from the instanced
+// total that sizes batching points: forest-2k's trees (205k unique triangles, 10^8 instanced) go in
+// several segments of at most 2^16 triangles (unless one mesh is larger), not in one of 1.6M.
+TEST(Cluster, SegmentTargetFollowsTheSegmentsOwnTriangles) {
+  const std::filesystem::path path = shared_assets() / "scenes/forest-2k.glb";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "../shared/assets is absent: " << path;
+  const Scene s = import_gltf(path.string());
+  const Plan p = plan_batching_points(s, {});
+  EXPECT_GT(p.chunk_target, uint64_t(1) << 20);
+  uint64_t in_segments = 0;
+  for (const auto& seg : p.segments) {
+    in_segments += seg.triangles;
+    if (seg.meshes.size() > 1) EXPECT_LE(seg.triangles, uint64_t(1) << 16);
+  }
+  EXPECT_GE(p.segments.size(), in_segments >> 16) << in_segments << " triangles in segments";
+  EXPECT_GT(p.segments.size(), 1u);
+  check_plan(s, p);
+  ClusterOptions o;  // an explicit target still wins
+  o.segment_target = uint64_t(1) << 30;
+  EXPECT_EQ(plan_batching_points(s, o).segments.size(), 1u);
+}
+
 TEST(Cluster, LanternPiecesSplitAtFractionOfTarget) {
   const Scene s = import_gltf((source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string());
   ClusterOptions o;

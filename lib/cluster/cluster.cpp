@@ -325,8 +325,15 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   plan.mesh_instanced.resize(scene.meshes.size());
   for (size_t m = 0; m < uses.size(); ++m) plan.mesh_instanced[m] = uses[m] >= 2;
 
-  // Mesh segments: instanced meshes in mesh order, packed up to the segment target.
-  const uint64_t seg_target = opt.segment_target ? opt.segment_target : plan.chunk_target;
+  // Mesh segments: instanced meshes in mesh order, packed up to the segment target. By default the
+  // target is derived from what the segments hold (their unique triangles), not from the instanced
+  // total that sizes batching points: forest-2k's 12 trees (366k triangles) were one 12.8 MB segment,
+  // loaded whole for any one tree and compressed by one thread while the other waited.
+  uint64_t segment_triangles = 0;
+  for (size_t m = 0; m < uses.size(); ++m)
+    if (plan.mesh_instanced[m]) segment_triangles += scene.meshes[m].triangle_count();
+  const uint64_t seg_target = opt.segment_target ? opt.segment_target
+                                                 : std::min(plan.chunk_target, target_for(segment_triangles));
   plan.mesh_segment.assign(scene.meshes.size(), kNoIndex);
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (!plan.mesh_instanced[m]) continue;
