@@ -327,7 +327,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
 
   // Mesh segments: instanced meshes in mesh order, packed up to the segment target. By default the
   // target is derived from what the segments hold (their unique triangles), not from the instanced
-  // total that sizes batching points: forest-2k's 12 trees (366k triangles) were one 12.8 MB segment,
+  // total that sizes batching points: forest-2k's 12 trees (205k triangles) were one 12.8 MB segment,
   // loaded whole for any one tree and compressed by one thread while the other waited.
   uint64_t segment_triangles = 0;
   for (size_t m = 0; m < uses.size(); ++m)

@@ -16,7 +16,7 @@ struct ClusterOptions {
   uint64_t chunk_target = 0;         // triangles per batching point; 0 = derived from the scene
   ChunkBy chunk_by = ChunkBy::kInstanced;
   double piece_fraction = 0.25;      // unique meshes larger than this fraction of the target are split
-  uint64_t segment_target = 0;       // triangles per mesh segment; 0 = derived (min(chunk target, target of the instanced meshes' triangles))
+  uint64_t segment_target = 0;       // triangles per mesh segment; 0 = derived from the instanced meshes' (<= chunk target)
 };
 
 // A piece of a non-instanced mesh, in the mesh's local space; its instance's transform places it

@@ -73,8 +73,8 @@ inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, fl
             for (int j = 0; j < B; ++j) {
               if (j > 0 && repeats_previous(blk, j)) continue;  // a short block's padding: the same hit again
               ++pc.triangle_tests;
-              for (uint32_t m = packet_triangle_test<typename K::template Vec<P>, P, B>(blk, j, ptri, L.tfar, rays, t, u, v); m;
-                   m &= m - 1) {
+              using VP = typename K::template Vec<P>;
+              for (uint32_t m = packet_triangle_test<VP, P, B>(blk, j, ptri, L.tfar, rays, t, u, v); m; m &= m - 1) {
                 const int lane = lowest_bit(m);
                 L.sink[lane].offer(t[lane], id, blk.prim[j], u[lane], v[lane]);
                 L.sync(lane);
