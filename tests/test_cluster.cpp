@@ -114,7 +114,9 @@ TEST(Cluster, SegmentTargetFollowsTheSegmentsOwnTriangles) {
   uint64_t in_segments = 0;
   for (const auto& seg : p.segments) {
     in_segments += seg.triangles;
-    if (seg.meshes.size() > 1) EXPECT_LE(seg.triangles, uint64_t(1) << 16);
+    if (seg.meshes.size() > 1) {
+      EXPECT_LE(seg.triangles, uint64_t(1) << 16);
+    }
   }
   EXPECT_GE(p.segments.size(), in_segments >> 16) << in_segments << " triangles in segments";
   EXPECT_GT(p.segments.size(), 1u);

@@ -108,7 +108,9 @@ void expect_packets_equal_single(const SceneView<W, B>& view, const std::vector<
       std::printf("%s: SIMD utilization %.1f%%, %.1f%% of the rays in packets\n", path.c_str(), 100 * utilization,
                   100.0 * double(got.closest.packet_rays) / double(rays.size()));
       EXPECT_GT(got.any.packets, 0u) << path;
-      if (packet_leaves) EXPECT_GT(got.closest.packet_triangle_tests, 0u) << path << ": no leaf tested by a packet";
+      if (packet_leaves) {
+        EXPECT_GT(got.closest.packet_triangle_tests, 0u) << path << ": no leaf tested by a packet";
+      }
     }
   }
 }
