@@ -121,12 +121,16 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
       voxelize_triangle(g, to_d(mesh.positions[mesh.indices[t]]), to_d(mesh.positions[mesh.indices[t + 1]]),
                         to_d(mesh.positions[mesh.indices[t + 2]]), margin);
     for (uint32_t r = kLocalRes;; r /= 2) {
-      Level lv{r, std::vector<uint8_t>(size_t(r) * r * r, 0)};
+      Level lv{r, std::vector<uint8_t>(size_t(r) * r * r, 0), {}};
       const uint32_t step = kLocalRes / r;
       for (uint32_t z = 0; z < kLocalRes; ++z)
         for (uint32_t y = 0; y < kLocalRes; ++y)
           for (uint32_t x = 0; x < kLocalRes; ++x)
             if (g.get(x, y, z)) lv.occupied[x / step + r * (y / step + size_t(r) * (z / step))] = 1;
+      for (uint32_t z = 0; z < r; ++z)
+        for (uint32_t y = 0; y < r; ++y)
+          for (uint32_t x = 0; x < r; ++x)
+            if (lv.occupied[x + r * (y + size_t(r) * z)]) lv.cells.push_back(x | y << 8 | z << 16);
       p.levels.insert(p.levels.begin(), std::move(lv));
       if (r == 1) break;
     }
@@ -215,14 +219,12 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     while (lv + 1 < p.levels.size() && double(p.levels[lv].r) < cells / 2) ++lv;
     const MeshProxies::Level& L = p.levels[lv];
     const double lc = p.cell * (kLocalRes / L.r);
-    for (uint32_t z = 0; z < L.r; ++z)
-      for (uint32_t y = 0; y < L.r; ++y)
-        for (uint32_t x = 0; x < L.r; ++x) {
-          if (!L.occupied[x + L.r * (y + size_t(L.r) * z)]) continue;
-          const Vec3d clo = p.origin + Vec3d{x * lc, y * lc, z * lc}, chi = clo + Vec3d{lc, lc, lc};
-          world_box(e, clo, chi, e.margin, wlo, whi);
-          g.mark_box(wlo, whi);
-        }
+    for (const uint32_t c : L.cells) {  // the occupied cells in scan order (z, y, x ascending), not all r^3
+      const uint32_t x = c & 255, y = c >> 8 & 255, z = c >> 16;
+      const Vec3d clo = p.origin + Vec3d{x * lc, y * lc, z * lc}, chi = clo + Vec3d{lc, lc, lc};
+      world_box(e, clo, chi, e.margin, wlo, whi);
+      g.mark_box(wlo, whi);
+    }
   }
   out.set_cells = g.count();
   out.dag = build_dag(g);

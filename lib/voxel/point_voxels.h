@@ -31,6 +31,7 @@ class MeshProxies {
   struct Level {
     uint32_t r = 0;
     std::vector<uint8_t> occupied;  // r^3, x fastest
+    std::vector<uint32_t> cells;    // the occupied ones, x | y << 8 | z << 16, in that scan order
   };
   struct Proxy {
     Aabb bounds;                    // the mesh's local bounds (computed once, not per instance)

@@ -51,7 +51,7 @@ std::vector<uint64_t> Grid::dense() const {
 namespace {
 
 // Cell range [first, last] whose cells overlap [lo, hi] on one axis; false when outside the grid.
-bool cell_range(double origin, double inv_cell, uint32_t resolution, double lo, double hi, int& first, int& last) {
+inline bool cell_range(double origin, double inv_cell, uint32_t resolution, double lo, double hi, int& first, int& last) {
   // The quotients are rounded (relative 2^-52 each): pad by one cell only when one lies within 1e-9
   // (relative) of a cell plane; the exact tests decide. Most small triangles then test 1-8 cells, not 27.
   const double qa = (lo - origin) * inv_cell, qb = (hi - origin) * inv_cell;
@@ -74,26 +74,42 @@ bool cell_range(const Grid& g, int axis, double lo, double hi, int& first, int& 
 
 }  // namespace
 
+// A 4x4x4 block's cells (bit x + 4y + 16z) whose x, y or z coordinate is in the 4-bit set p.
+constexpr auto kAxisBits = [] {
+  struct {
+    uint64_t axis[3][16];
+  } t{};
+  for (uint32_t p = 0; p < 16; ++p)
+    for (uint32_t i = 0; i < 4; ++i) {
+      if (!(p >> i & 1u)) continue;
+      t.axis[0][p] |= 0x1111111111111111ull << i;
+      t.axis[1][p] |= 0x000F000F000F000Full << (4 * i);
+      t.axis[2][p] |= 0xFFFFull << (16 * i);
+    }
+  return t;
+}();
+
 void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
   int f[3], l[3];
+  const double inv_cell = 1 / cell;  // once for the three axes
   for (int k = 0; k < 3; ++k) {
-    if (!cell_range(*this, k, lo[k], hi[k], f[k], l[k])) return;
+    if (!cell_range(origin[k], inv_cell, resolution, lo[k], hi[k], f[k], l[k])) return;
     // Exact overlap on this axis: cell i spans [origin + i*cell, origin + (i+1)*cell].
     while (f[k] < l[k] && origin[k] + (f[k] + 1) * cell < lo[k]) ++f[k];
     while (l[k] > f[k] && origin[k] + l[k] * cell > hi[k]) --l[k];
   }
   // Block by block: a block's cells in the box are the AND of three per-axis masks (bit x + 4y + 16z).
-  const auto axis_mask = [](int first, int last, int block, uint64_t unit, int stride) {
-    uint64_t m = 0;
-    for (int i = std::max(first, 4 * block); i <= std::min(last, 4 * block + 3); ++i) m |= unit << (stride * (i & 3));
-    return m;
+  // The cells [first, last] within block `block` as a 4-bit set (first <= last, the block meets them).
+  const auto axis_mask = [](int axis, int first, int last, int block) {
+    const int a = std::max(first, 4 * block) - 4 * block, b = std::min(last, 4 * block + 3) - 4 * block;
+    return kAxisBits.axis[axis][((2u << (b - a)) - 1) << a];
   };
   for (int bz = f[2] >> 2; bz <= l[2] >> 2; ++bz) {
-    const uint64_t mz = axis_mask(f[2], l[2], bz, 0xFFFF, 16);
+    const uint64_t mz = axis_mask(2, f[2], l[2], bz);
     for (int by = f[1] >> 2; by <= l[1] >> 2; ++by) {
-      const uint64_t myz = mz & axis_mask(f[1], l[1], by, 0x000F000F000F000Full, 4);
+      const uint64_t myz = mz & axis_mask(1, f[1], l[1], by);
       for (int bx = f[0] >> 2; bx <= l[0] >> 2; ++bx)
-        or_block(uint32_t(bx), uint32_t(by), uint32_t(bz), myz & axis_mask(f[0], l[0], bx, 0x1111111111111111ull, 1));
+        or_block(uint32_t(bx), uint32_t(by), uint32_t(bz), myz & axis_mask(0, f[0], l[0], bx));
     }
   }
 }
