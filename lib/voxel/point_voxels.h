@@ -30,8 +30,7 @@ class MeshProxies {
   MeshProxies(const Scene& scene, const Plan& plan);
   struct Level {
     uint32_t r = 0;
-    std::vector<uint8_t> occupied;  // r^3, x fastest
-    std::vector<uint32_t> cells;    // the occupied ones, x | y << 8 | z << 16, in that scan order
+    std::vector<uint32_t> cells;    // the occupied cells, x | y << 8 | z << 16, z, y, x ascending
   };
   struct Proxy {
     Aabb bounds;                    // the mesh's local bounds (computed once, not per instance)

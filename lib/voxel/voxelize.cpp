@@ -72,8 +72,6 @@ bool cell_range(const Grid& g, int axis, double lo, double hi, int& first, int& 
   return cell_range(g.origin[axis], 1 / g.cell, g.resolution, lo, hi, first, last);
 }
 
-}  // namespace
-
 // A 4x4x4 block's cells (bit x + 4y + 16z) whose x, y or z coordinate is in the 4-bit set p.
 constexpr auto kAxisBits = [] {
   struct {
@@ -88,6 +86,8 @@ constexpr auto kAxisBits = [] {
     }
   return t;
 }();
+
+}  // namespace
 
 void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
   int f[3], l[3];
