@@ -9,6 +9,8 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <utility>
+#include <vector>
 
 #include "core/error.h"
 #include "formats/chunk.h"
@@ -151,16 +153,8 @@ class Tracer final : public PackageTracer {
 
   PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) const override {
     std::fill(hits, hits + n, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
-    return each_ray(rays, n, o, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray& ray) {
-      fmt::Hit h;
-      trace_closest<W, B>(pt.view, &local, &h, 1, o);
-      if (h.t < hits[i].t) {
-        hits[i] = h;
-        hits[i].instance = pt.global_ids[h.instance];
-        ray.tfar = h.t;  // later batching points only need to beat this hit
-      }
-      return false;
-    });
+    if (o.packet && packet_size_ok(o.packet) && o.isa != Isa::kScalar) return closest_packets(rays, hits, n, o);
+    return closest_single(rays, hits, n, o);
   }
 
   PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) const override {
@@ -219,6 +213,140 @@ class Tracer final : public PackageTracer {
     return false;
   }
 
+  PackageTraceStats closest_single(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) const {
+    PackageTraceOptions one = o;
+    one.packet = 0;
+    return each_ray(rays, n, one, [&](size_t i, const Point<W, B>& pt, const fmt::Ray& local, fmt::Ray& ray) {
+      fmt::Hit h;
+      trace_closest<W, B>(pt.view, &local, &h, 1, one);
+      if (h.t < hits[i].t) {
+        hits[i] = h;
+        hits[i].instance = pt.global_ids[h.instance];
+        ray.tfar = h.t;  // later batching points only need to beat this hit
+      }
+      return false;
+    });
+  }
+
+  // Wu 2016 §3.4.1 packets through the package: each valid ray of a run of P consecutive rays lists the
+  // batching points it enters front to back (traverse()); the lists are merged into one order in which
+  // every ray still meets its own points in its own order (merge_visits), and at each point of it the rays
+  // that list it and still enter it (its entry within their closest hit so far, not culled by its DAG) are
+  // traced as one packet (trace.h). The answers are closest_single's bit for bit: each ray meets the same
+  // points in the same order with the same tfar, and a packet's hits equal single rays'. A run whose
+  // lists cannot be merged (two rays meet two points in opposite orders) goes ray by ray.
+  PackageTraceStats closest_packets(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) const {
+    const size_t P = o.packet;
+    PackageTraceStats st;
+    st.rays = n;
+    thread_local Visits v;
+    v.pending.resize(std::max(v.pending.size(), points_.size()), 0);
+    for (size_t base = 0; base < n; base += P) {
+      const size_t count = std::min(P, n - base);
+      uint32_t valid = 0;
+      for (size_t i = 0; i < count; ++i) {
+        v.seq[i].clear();
+        if (!ray_is_valid(rays[base + i])) continue;
+        valid |= 1u << i;
+        traverse(rays[base + i], [&](const Point<W, B>&, size_t p, double t) {
+          v.seq[i].push_back({uint32_t(p), t});
+          return false;
+        });
+      }
+      if (__builtin_popcount(valid) < 2 || !merge_visits(v, valid)) {
+        add_stats(st, closest_single(rays + base, hits + base, count, o));
+        continue;
+      }
+      st.invalid_rays += count - size_t(__builtin_popcount(valid));
+      fmt::Ray ray[kMaxPacket], local[kMaxPacket];
+      size_t cur[kMaxPacket] = {};
+      for (size_t i = 0; i < count; ++i) ray[i] = rays[base + i];
+      for (const uint32_t p : v.order) {
+        uint32_t lane[kMaxPacket];
+        size_t m = 0;
+        for (uint32_t bits = valid; bits; bits &= bits - 1) {
+          const uint32_t i = uint32_t(__builtin_ctz(bits));
+          if (cur[i] == v.seq[i].size() || v.seq[i][cur[i]].first != p) continue;  // not one of its points
+          if (v.seq[i][cur[i]++].second > double(ray[i].tfar)) continue;          // beyond its closest hit so far
+          local[m] = ray[i];
+          if (enter(p, local[m], o, st)) lane[m++] = i;
+        }
+        if (m == 0) continue;
+        fmt::Hit h[kMaxPacket];
+        const TraceStats ts = trace_closest<W, B>(points_[p].view, local, h, m, o);
+        st.packets += ts.packets, st.packet_rays += ts.packet_rays, st.packet_node_tests += ts.packet_node_tests;
+        st.packet_active_lanes += ts.packet_active_lanes, st.packet_single_walks += ts.packet_single_walks;
+        st.packet_triangle_tests += ts.packet_triangle_tests;
+        for (size_t j = 0; j < m; ++j) {
+          fmt::Hit& out = hits[base + lane[j]];
+          if (h[j].t < out.t) {
+            out = h[j];
+            out.instance = points_[p].global_ids[h[j].instance];
+            ray[lane[j]].tfar = h[j].t;
+          }
+        }
+      }
+    }
+    return st;
+  }
+
+  static constexpr size_t kMaxPacket = 16;
+  // Per thread: each lane's batching points with entry distances, their merged order, and per point how
+  // many lanes still have it ahead (all zero between runs).
+  struct Visits {
+    std::vector<std::pair<uint32_t, double>> seq[kMaxPacket];
+    std::vector<uint32_t> order;
+    std::vector<uint8_t> pending;
+  };
+
+  // v.order := the points of the lanes in `valid`, each once, in an order that keeps every lane's own order:
+  // repeatedly the nearest lane head that no lane has further ahead (a point is in a lane's list at most
+  // once: a top-level leaf has one parent). False when no head qualifies: the lists order two points
+  // both ways.
+  static bool merge_visits(Visits& v, uint32_t valid) {
+    size_t cur[kMaxPacket] = {};
+    v.order.clear();
+    for (uint32_t bits = valid; bits; bits &= bits - 1)
+      for (const auto& e : v.seq[__builtin_ctz(bits)]) ++v.pending[e.first];
+    for (;;) {
+      int best = -1;
+      double best_t = 0;
+      bool left = false;
+      for (uint32_t bits = valid; bits; bits &= bits - 1) {
+        const uint32_t i = uint32_t(__builtin_ctz(bits));
+        if (cur[i] == v.seq[i].size()) continue;
+        left = true;
+        const auto& head = v.seq[i][cur[i]];
+        if (best >= 0 && head.second >= best_t) continue;
+        unsigned heads = 0;
+        for (uint32_t b2 = valid; b2; b2 &= b2 - 1) {
+          const uint32_t j = uint32_t(__builtin_ctz(b2));
+          heads += cur[j] < v.seq[j].size() && v.seq[j][cur[j]].first == head.first;
+        }
+        if (v.pending[head.first] == heads) best = int(head.first), best_t = head.second;
+      }
+      if (!left) return true;
+      if (best < 0) {  // a cycle: clear what is still pending
+        for (uint32_t bits = valid; bits; bits &= bits - 1) {
+          const uint32_t i = uint32_t(__builtin_ctz(bits));
+          for (size_t k = cur[i]; k < v.seq[i].size(); ++k) v.pending[v.seq[i][k].first] = 0;
+        }
+        return false;
+      }
+      v.order.push_back(uint32_t(best));
+      for (uint32_t bits = valid; bits; bits &= bits - 1) {
+        const uint32_t i = uint32_t(__builtin_ctz(bits));
+        if (cur[i] < v.seq[i].size() && v.seq[i][cur[i]].first == uint32_t(best)) ++cur[i], --v.pending[best];
+      }
+    }
+  }
+
+  static void add_stats(PackageTraceStats& to, const PackageTraceStats& from) {
+    to.add(from);
+    to.rays -= from.rays;  // the caller counted every ray once
+    to.point_visits += from.point_visits, to.culled_visits += from.culled_visits;
+  }
+
   // Every valid ray (invalid ones are counted and left as the caller set them) front to back over the
   // batching points it may hit: visit(i, point, local, ray) traces the point with `local` (the ray
   // narrowed by the point's DAG), may shrink ray.tfar to cull later points, and returns true to stop.
@@ -232,7 +360,7 @@ class Tracer final : public PackageTracer {
         continue;
       }
       fmt::Ray ray = rays[i];
-      traverse(ray, [&](const Point<W, B>& pt, size_t p) {
+      traverse(ray, [&](const Point<W, B>& pt, size_t p, double) {
         fmt::Ray local = ray;
         return enter(p, local, o, st) && visit(i, pt, local, ray);
       });
@@ -241,7 +369,7 @@ class Tracer final : public PackageTracer {
   }
 
   // Front-to-back over the top level: lanes sorted by entry distance, skipped once beyond ray.tfar
-  // (which the visitor may shrink). `visit` returns true to stop (any hit).
+  // (which the visitor may shrink). visit(point, p, entry distance) returns true to stop (any hit).
   template <class Visit>
   void traverse(const fmt::Ray& ray, Visit&& visit) const {
     if (top_count_ == 0) return;
@@ -258,7 +386,7 @@ class Tracer final : public PackageTracer {
       if (e.t > double(ray.tfar)) continue;
       if (e.ref & fmt::TopNode::kLeafBit) {
         const size_t p = e.ref & ~fmt::TopNode::kLeafBit;
-        if (visit(points_[p], p)) return;
+        if (visit(points_[p], p, e.t)) return;
         continue;
       }
       const fmt::TopNode& node = top_[e.ref];
