@@ -9,6 +9,7 @@
 #include "formats/ray_file.h"
 #include "gltf_builder.h"
 #include "image/image.h"
+#include "trace/trace.h"
 #include "tool_run.h"
 
 namespace rtp::test {
@@ -125,6 +126,52 @@ TEST_F(TraceImage, CamerasAndTheAutomaticOne) {
   EXPECT_LT(hit, 40u * 40u);
 }
 
+// Issue 11: an image's rays go in packets of 16 along Hilbert-ordered 4x4 tiles by default; packets of 4
+// or 8, single rays (--packet 0) and the scalar ISA give the same picture and the same hits byte for byte.
+TEST_F(TraceImage, PacketsInHilbertTilesGiveTheSingleRayImage) {
+  const fs::path png0 = dir / "p0.png", hits0 = dir / "p0.hits";
+  const ToolResult single = trace({gallery.string(), "--image", png0.string(), "--size", "70x46", "--camera", "1", "--packet",
+                                   "0", "--hits", hits0.string(), "--json"});
+  ASSERT_EQ(single.code, 0) << single.err;
+  EXPECT_EQ(nlohmann::json::parse(single.out)["packets"]["packets"].get<uint64_t>(), 0u);
+  size_t hit = 0;
+  for (const auto& x : read_records<fmt::Hit>(hits0)) hit += x.instance != fmt::Hit::kNone;
+  ASSERT_GT(hit, 70u * 46u / 100) << "too few hits to compare";
+  for (const char* size : {"", "4", "8", "16"}) {
+    const std::string tag = std::string("p") + (*size ? size : "default");
+    const fs::path png = dir / (tag + ".png"), hits = dir / (tag + ".hits");
+    std::vector<std::string> args = {gallery.string(), "--image", png.string(), "--size", "70x46", "--camera", "1",
+                                     "--hits", hits.string(), "--json"};
+    if (*size) args.insert(args.end(), {"--packet", size});
+    const ToolResult r = trace(args);
+    ASSERT_EQ(r.code, 0) << tag << ": " << r.err;
+    EXPECT_EQ(slurp_file(hits), slurp_file(hits0)) << tag;
+    EXPECT_EQ(slurp_file(png), slurp_file(png0)) << tag;
+    const auto j = nlohmann::json::parse(r.out)["packets"];
+    EXPECT_EQ(j["size"].get<int>(), *size ? std::atoi(size) : 16) << tag;
+    EXPECT_EQ(j["order"].get<std::string>(), "hilbert 4x4 tiles") << tag;
+    if (rtp::detect_isa() == rtp::Isa::kScalar) continue;  // no SIMD: single rays, no packets
+    EXPECT_GT(j["packets"].get<uint64_t>(), 0u) << tag;
+    EXPECT_GT(j["packet_visit_share"].get<double>(), 0.5) << tag;
+    const double u = j["simd_utilization"].get<double>();
+    EXPECT_GT(u, 0.0) << tag;
+    EXPECT_LE(u, 1.0) << tag;
+  }
+  // The human summary says how the rays went.
+  const ToolResult text = trace({gallery.string(), "--image", (dir / "pt.png").string(), "--size", "32x32"});
+  ASSERT_EQ(text.code, 0) << text.err;
+  if (rtp::detect_isa() != rtp::Isa::kScalar) {
+    EXPECT_NE(text.err.find("packets of 16 (Hilbert-ordered 4x4 tiles)"), std::string::npos) << text.err;
+    EXPECT_NE(text.err.find("SIMD utilization"), std::string::npos) << text.err;
+  }
+  // The scalar reference traces single rays and still gives the same picture.
+  const ToolResult scalar = trace({gallery.string(), "--image", (dir / "ps.png").string(), "--size", "70x46", "--camera",
+                                   "1", "--isa", "scalar", "--hits", (dir / "ps.hits").string()});
+  ASSERT_EQ(scalar.code, 0) << scalar.err;
+  EXPECT_EQ(slurp_file(dir / "ps.hits"), slurp_file(hits0));
+  EXPECT_EQ(scalar.err.find("packets of"), std::string::npos) << scalar.err;
+}
+
 TEST_F(TraceImage, UsageErrorsWriteNothing) {
   const std::string png = (dir / "u.png").string(), g = gallery.string();
   const struct {
@@ -133,6 +180,12 @@ TEST_F(TraceImage, UsageErrorsWriteNothing) {
   } cases[] = {
       {{g, "--image", png, "--rays", (dir / "x.rays").string()}, "leave out --rays"},
       {{g, "--image", png, "--any"}, "cannot be used with --any"},
+      {{g, "--rays", (dir / "x.rays").string(), "--hits", (dir / "h").string(), "--packet", "8", "--any"},
+       "--packet traces closest hits"},
+      {{g, "--rays", (dir / "x.rays").string(), "--hits", (dir / "h").string(), "--packet", "4", "--multi-hit", "3"},
+       "--packet traces closest hits"},
+      {{g, "--image", png, "--packet", "16", "--memory-budget", "64M"}, "traces single rays"},
+      {{g, "--image", png, "--packet", "5"}, "--packet"},
       {{g, "--image", png, "--size", "0x5"}, "--size 0x5: expected WxH"},
       {{g, "--image", png, "--size", "64x"}, "expected WxH"},
       {{g, "--image", png, "--shade", "phong"}, "--shade"},

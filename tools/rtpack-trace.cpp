@@ -28,6 +28,7 @@
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 #include "trace/ray_file.h"
+#include "trace/tile_order.h"
 #include "tool_version.h"
 
 namespace {
@@ -101,6 +102,11 @@ int main(int argc, char** argv) {
   app.add_flag("--direct-io", direct, "read chunks with O_DIRECT (falls back when unsupported)");
   app.add_flag("--no-cull", no_cull, "do not test rays against the batching points' culling DAGs (same hits, slower)");
   app.add_flag("--json", json, "print the counts as JSON on stdout");
+  uint32_t packet = 0;
+  app.add_option("--packet", packet,
+                 "closest hits in core: trace each run of N consecutive rays as a packet, N = 4, 8 or 16, or 0 for single "
+                 "rays (same hits either way; default 16 with --image, whose rays go in Hilbert-ordered 4x4 tiles, else 0)")
+      ->check(CLI::IsMember({0u, 4u, 8u, 16u}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -125,6 +131,12 @@ int main(int argc, char** argv) {
   if (render && !parse_size(size, &img_w, &img_h)) return usage("--size " + size + ": expected WxH, e.g. 1280x720");
   if (!render && (app.count("--size") > 0 || app.count("--shade") > 0)) return usage("--size and --shade belong to --image");
   if (!render && camera >= 0 && make_rays.empty()) return usage("--camera belongs to --image and --make-camera-rays");
+  const bool packet_given = app.count("--packet") > 0;
+  if (packet_given && packet && (any || multi))
+    return usage("--packet traces closest hits: it cannot be used with --any or --multi-hit");
+  if (packet_given && packet && !budget_text.empty())
+    return usage("--packet: the out-of-core tracer (--memory-budget) traces single rays; leave out one of them");
+  if (!packet_given && render && budget_text.empty()) packet = 16;
   try {
     // No output may be an input (or another output): compared by device and inode.
     for (const std::string* out : {&hits_path, &shading_path, &image_path}) {
@@ -175,6 +187,13 @@ int main(int argc, char** argv) {
     } else {
       rays = rtp::read_ray_file(rays_path);
     }
+    // Packets of an image: its rays traced in Hilbert-ordered 4x4 tiles (trace/tile_order.h), the hits put
+    // back in pixel order. Ray files are traced in their own order.
+    std::vector<uint32_t> tile_order;
+    if (render && packet) tile_order = rtp::hilbert_tile_order(img_w, img_h);
+    std::vector<rtp::fmt::Ray> tiled(tile_order.size());
+    for (size_t k = 0; k < tile_order.size(); ++k) tiled[k] = rays[tile_order[k]];
+    const std::vector<rtp::fmt::Ray>& traced = tile_order.empty() ? rays : tiled;
     rtp::PackageTraceOptions opt;
     opt.cull = !no_cull;
     const rtp::Isa best = rtp::detect_isa();
@@ -182,10 +201,11 @@ int main(int argc, char** argv) {
     if (int(opt.isa) > int(best))
       throw rtp::Error(rtp::ExitCode::kUsage, std::string("--isa ") + isa + ": this CPU supports up to " + rtp::isa_name(best));
     opt.order = order == "active" ? rtp::TraversalOrder::kActiveList : rtp::TraversalOrder::kOctantStack;
+    opt.packet = opt.isa == rtp::Isa::kScalar ? 0 : packet;  // the scalar reference has no packets
     std::vector<rtp::fmt::Hit> hits(any ? 0 : rays.size() * (multi ? multi : 1));
     std::vector<uint32_t> counts(multi ? rays.size() : 0);
     std::vector<uint8_t> occ(any ? rays.size() : 0);
-    std::atomic<uint64_t> invalid{0}, visits{0}, culled{0};
+    std::atomic<uint64_t> invalid{0}, visits{0}, culled{0}, packets{0}, packet_rays{0}, node_tests{0}, active_lanes{0};
     rtp::OutOfCoreStats os;
     const auto t0 = std::chrono::steady_clock::now();
     if (ooc) {
@@ -196,16 +216,23 @@ int main(int argc, char** argv) {
       visits = os.point_visits;
       culled = os.culled_visits;
     } else {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+      // Blocks of 256 rays: a multiple of every packet size, so packets stay the runs the caller ordered.
+      constexpr size_t kBlock = 256;
+      std::vector<rtp::fmt::Hit> tiled_hits(tile_order.size());
+      rtp::fmt::Hit* out = tile_order.empty() ? hits.data() : tiled_hits.data();
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, (rays.size() + kBlock - 1) / kBlock), [&](const tbb::blocked_range<size_t>& br) {
+        const size_t begin = br.begin() * kBlock, end = std::min(rays.size(), br.end() * kBlock), n = end - begin;
         const rtp::PackageTraceStats st =
-            any     ? tracer->any(rays.data() + r.begin(), occ.data() + r.begin(), r.size(), opt)
-            : multi ? tracer->multi(rays.data() + r.begin(), r.size(), multi, hits.data() + r.begin() * multi,
-                                    counts.data() + r.begin(), opt)
-                    : tracer->closest(rays.data() + r.begin(), hits.data() + r.begin(), r.size(), opt);
+            any     ? tracer->any(traced.data() + begin, occ.data() + begin, n, opt)
+            : multi ? tracer->multi(traced.data() + begin, n, multi, hits.data() + begin * multi, counts.data() + begin, opt)
+                    : tracer->closest(traced.data() + begin, out + begin, n, opt);
         invalid += st.invalid_rays;
         visits += st.point_visits;
         culled += st.culled_visits;
+        packets += st.packets, packet_rays += st.packet_rays;
+        node_tests += st.packet_node_tests, active_lanes += st.packet_active_lanes;
       });
+      for (size_t k = 0; k < tile_order.size(); ++k) hits[tile_order[k]] = tiled_hits[k];
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     uint64_t hit_count = 0, multi_hits = 0;
@@ -255,6 +282,15 @@ int main(int argc, char** argv) {
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
     if (multi) j["multi_hit"] = {{"k", multi}, {"hits", multi_hits}};
+    // Wu 2016 §4.2.1 SIMD utilization: active rays per packet node test over the packet size.
+    const double utilization =
+        opt.packet && node_tests.load() ? double(active_lanes.load()) / (double(node_tests.load()) * opt.packet) : 0.0;
+    // A ray traced at two batching points counts twice: shares are of the traced (entered, not culled) visits.
+    const uint64_t traced_visits = visits.load() - culled.load();
+    const double packet_share = traced_visits ? double(packet_rays.load()) / double(traced_visits) : 0.0;
+    j["packets"] = {{"size", opt.packet}, {"order", tile_order.empty() ? "as given" : "hilbert 4x4 tiles"},
+                    {"packets", packets.load()}, {"packet_ray_visits", packet_rays.load()},
+                    {"packet_visit_share", packet_share}, {"simd_utilization", utilization}};
     if (render)
       j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
@@ -307,6 +343,12 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
                      (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
                      ls.check_seconds);
+      if (opt.packet)
+        std::fprintf(stderr,
+                     "packets of %u (%s): %llu packets; %.1f%% of the traced batching-point visits went in packets; SIMD "
+                     "utilization %.1f%%\n",
+                     opt.packet, tile_order.empty() ? "rays in file order" : "Hilbert-ordered 4x4 tiles",
+                     (unsigned long long)packets.load(), 100 * packet_share, 100 * utilization);
       if (multi)
         std::fprintf(stderr, "multi-hit: the %u closest hits of each ray, %llu in all (%.2f per ray that hits)\n",
                      multi, (unsigned long long)multi_hits, hit_count ? double(multi_hits) / double(hit_count) : 0.0);
