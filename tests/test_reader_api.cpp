@@ -1,6 +1,7 @@
 // The public reader API (lib/rtpack/rtpack.h, installed as rtpack::reader) against the internals it
 // wraps, ray by ray: same hits and occlusion as the package tracer for every thread count, same
-// attributes as AttributeLookup, same camera rays; errors carry the tools' codes and name the file.
+// attributes as AttributeLookup, same camera rays, packets of tiled camera rays give the single rays'
+// hits; errors carry the tools' codes and name the file.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -163,6 +164,85 @@ TEST_F(ReaderApi, ShadingAndCameraRaysEqualTheInternals) {
   EXPECT_GT(nonzero, 100u);
 }
 
+// TraceOptions::packet over camera rays in PixelOrder::kTiles: the hits of single rays bit for bit, for
+// every SIMD ISA, packet size and thread count, with an invalid ray inside a packet, a short last run
+// and scattered rays after the image; the stats show the packets were taken.
+TEST_F(ReaderApi, PacketsOfTiledCameraRaysGiveTheSingleRayHits) {
+  constexpr int kW = 130, kH = 66;  // cut edge tiles; 8580 rays, not a multiple of 16 or 256
+  const std::vector<uint32_t> order = rtpack::tile_order(kW, kH);
+  ASSERT_EQ(order.size(), size_t(kW) * kH);
+  std::vector<uint8_t> seen(order.size(), 0);
+  for (uint32_t px : order) {
+    ASSERT_LT(px, order.size());
+    ASSERT_EQ(seen[px]++, 0) << "pixel " << px << " twice";
+  }
+  std::vector<rtpack::Isa> isas;
+  if (int(detect_isa()) >= int(Isa::kAvx2)) isas.push_back(rtpack::Isa::kAvx2);
+  if (detect_isa() == Isa::kAvx512) isas.push_back(rtpack::Isa::kAvx512);
+  if (isas.empty()) GTEST_SKIP() << "packets are SIMD only; this CPU has no AVX2";
+  for (const fs::path& p : {gallery, helmet}) {
+    const rtpack::Package pkg = rtpack::Package::open(p.string());
+    const std::vector<rtpack::Ray> rows = pkg.camera_rays(kW, kH);
+    std::vector<rtpack::Ray> rays = pkg.camera_rays(kW, kH, -1, rtpack::PixelOrder::kTiles);
+    ASSERT_EQ(rays.size(), rows.size());
+    for (size_t k = 0; k < rays.size(); ++k)
+      ASSERT_EQ(std::memcmp(&rays[k], &rows[order[k]], sizeof(rtpack::Ray)), 0) << p << " ray " << k;
+    rays[37].tnear = NAN;
+    const std::vector<rtpack::Ray> scattered = random_rays(pkg.info().bounds, 1000, 11);
+    rays.insert(rays.end(), scattered.begin(), scattered.end());
+
+    rtpack::TraceOptions single;
+    single.threads = 1;
+    std::vector<rtpack::Hit> want(rays.size());
+    rtpack::TraceStats ws;
+    const size_t want_hits = pkg.trace(rays.data(), want.data(), rays.size(), single, &ws);
+    ASSERT_GT(want_hits, 150u) << p;  // gallery: 2 % of its pixels show geometry
+    EXPECT_EQ(ws.rays, rays.size());
+    EXPECT_EQ(ws.invalid_rays, 2u);  // tnear NaN in the image, a NaN direction among the scattered rays
+    EXPECT_EQ(ws.packets, 0u);
+    ASSERT_GT(ws.batching_point_visits, 0u);
+    for (const rtpack::Isa isa : isas)
+      for (const int packet : {4, 8, 16})
+        for (const int threads : {1, 2}) {
+          rtpack::TraceOptions o;
+          o.isa = isa, o.packet = packet, o.threads = threads;
+          std::vector<rtpack::Hit> hits(rays.size());
+          rtpack::TraceStats st;
+          EXPECT_EQ(pkg.trace(rays.data(), hits.data(), rays.size(), o, &st), want_hits);
+          for (size_t i = 0; i < rays.size(); ++i)
+            ASSERT_EQ(std::memcmp(&hits[i], &want[i], sizeof(rtpack::Hit)), 0)
+                << p << " ray " << i << " isa " << int(isa) << " packet " << packet << " threads " << threads;
+          EXPECT_EQ(st.rays, ws.rays);
+          EXPECT_EQ(st.invalid_rays, ws.invalid_rays);
+          EXPECT_EQ(st.batching_point_visits, ws.batching_point_visits);
+          EXPECT_EQ(st.culled_visits, ws.culled_visits);
+          EXPECT_GT(st.packets, 0u) << p << " packet " << packet;
+          // The image's rays make most of the traced (not culled) visits, and they go in packets.
+          const uint64_t traced = ws.batching_point_visits - ws.culled_visits;
+          EXPECT_GT(st.packet_ray_visits, traced / 2) << p << " packet " << packet;
+          EXPECT_LE(st.packet_ray_visits, traced);
+          EXPECT_GT(st.packet_node_tests, 0u);
+          EXPECT_LE(st.packet_active_lanes, st.packet_node_tests * uint64_t(packet));
+          EXPECT_GE(st.packet_active_lanes, st.packet_node_tests * 3);  // a packet node test has 3+ rays
+        }
+    // The scalar reference and occluded() trace single rays whatever TraceOptions::packet says.
+    rtpack::TraceOptions scalar;
+    scalar.isa = rtpack::Isa::kScalar, scalar.packet = 16;
+    std::vector<rtpack::Hit> hits(rays.size());
+    rtpack::TraceStats st;
+    EXPECT_EQ(pkg.trace(rays.data(), hits.data(), rays.size(), scalar, &st), want_hits);
+    EXPECT_EQ(st.packets, 0u);
+    std::vector<uint8_t> want_occ(rays.size()), occ(rays.size());
+    const size_t n_occ = pkg.occluded(rays.data(), want_occ.data(), rays.size(), single);
+    rtpack::TraceOptions any16;
+    any16.packet = 16;
+    EXPECT_EQ(pkg.occluded(rays.data(), occ.data(), rays.size(), any16, &st), n_occ);
+    EXPECT_EQ(occ, want_occ);
+    EXPECT_EQ(st.packets, 0u);
+    EXPECT_EQ(st.rays, rays.size());
+  }
+}
+
 TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
   auto code_of = [](auto&& f) {
     try {
@@ -207,6 +287,22 @@ TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
     EXPECT_EQ(c6, 1);
     EXPECT_NE(m6.find("this CPU runs up to"), std::string::npos) << m6;
   }
+  for (const int packet : {-4, 1, 5, 32}) {
+    rtpack::TraceOptions o;
+    o.packet = packet;
+    rtpack::Ray r{{0, 0, 0}, 0, {0, 0, 1}, 1};
+    rtpack::Hit h{};
+    auto [c7, m7] = code_of([&] { pkg.trace(&r, &h, 1, o); });
+    EXPECT_EQ(c7, 1) << packet;
+    EXPECT_NE(m7.find("TraceOptions::packet = " + std::to_string(packet) + ": rays per packet are 4, 8 or 16"),
+              std::string::npos) << m7;
+  }
+  auto [c8, m8] = code_of([&] { rtpack::tile_order(4, -1); });
+  EXPECT_EQ(c8, 1);
+  EXPECT_NE(m8.find("tile_order: 4x-1 is not a size"), std::string::npos) << m8;
+  auto [c9, m9] = code_of([&] { pkg.camera_rays(8, 8, -1, rtpack::PixelOrder(7)); });
+  EXPECT_EQ(c9, 1);
+  EXPECT_NE(m9.find("PixelOrder 7 is not an order"), std::string::npos) << m9;
 }
 
 }}  // namespace

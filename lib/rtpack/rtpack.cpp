@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -19,6 +20,7 @@
 #include "reader/chunk_io.h"
 #include "reader/container.h"
 #include "trace/package_tracer.h"
+#include "trace/tile_order.h"
 
 #ifndef RTP_VERSION
 #define RTP_VERSION "unknown"
@@ -44,6 +46,13 @@ auto guarded(const std::string& path, F&& f) -> decltype(f()) {
   } catch (const std::bad_alloc&) {
     throw Error(int(rtp::ExitCode::kInternal), path + ": out of memory");
   }
+}
+
+// camera_rays() and tile_order() take 1 to 2^28 pixels.
+void check_image_size(const char* what, int width, int height) {
+  if (width <= 0 || height <= 0 || int64_t(width) * height > (int64_t(1) << 28))
+    throw Error(int(rtp::ExitCode::kUsage), std::string(what) + ": " + std::to_string(width) + "x" +
+                                                std::to_string(height) + " is not a size (1 to 2^28 pixels)");
 }
 
 Bounds bounds_of(const float lo[3], const float hi[3]) {
@@ -84,21 +93,32 @@ struct Package::Impl {
     if (int(opt.isa) > int(best))
       throw Error(int(rtp::ExitCode::kUsage), std::string("this CPU runs up to ") + rtp::isa_name(best) + ", not " +
                                                    rtp::isa_name(opt.isa));
+    if (o.packet < 0 || !rtp::packet_size_ok(uint32_t(o.packet)))
+      throw Error(int(rtp::ExitCode::kUsage), "TraceOptions::packet = " + std::to_string(o.packet) +
+                                                   ": rays per packet are 4, 8 or 16, or 0 for single rays");
+    opt.packet = opt.isa == rtp::Isa::kScalar ? 0 : uint32_t(o.packet);  // the scalar reference has no packets
     return opt;
   }
 
-  // Splits [0, n) over TBB workers (or runs inline for threads == 1), summing what f returns.
+  // Splits [0, n) over TBB workers (or runs inline for threads == 1) in blocks of kBlock rays, summing
+  // what f(first, count) returns. kBlock is a multiple of every packet size: a task's rays start at a
+  // multiple of 16, so the packets are the caller's runs whatever the thread count.
+  static constexpr size_t kBlock = 256;
   template <class F>
   size_t parallel(size_t n, int threads, F&& f) const {
     std::atomic<size_t> sum{0};
-    auto body = [&](const tbb::blocked_range<size_t>& r) { sum += f(r.begin(), r.size()); };
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    auto body = [&](const tbb::blocked_range<size_t>& r) {
+      const size_t first = r.begin() * kBlock, last = std::min(n, r.end() * kBlock);
+      sum += f(first, last - first);
+    };
     if (threads == 1) {
-      if (n) body(tbb::blocked_range<size_t>(0, n));
+      if (n) body(tbb::blocked_range<size_t>(0, blocks));
     } else if (threads > 1) {
       tbb::task_arena arena(threads);
-      arena.execute([&] { tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), body); });
+      arena.execute([&] { tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), body); });
     } else {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), body);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), body);
     }
     return sum.load();
   }
@@ -168,29 +188,55 @@ const Info& Package::info() const { return impl_->info; }
 const std::vector<BatchingPoint>& Package::batching_points() const { return impl_->points; }
 const std::vector<Mesh>& Package::meshes() const { return impl_->meshes; }
 
-size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options) const {
+namespace {
+
+// TraceStats summed over the tasks of one call.
+struct StatsSum {
+  std::atomic<uint64_t> rays{0}, invalid{0}, visits{0}, culled{0}, packets{0}, packet_rays{0}, node_tests{0}, lanes{0};
+  void add(const rtp::PackageTraceStats& st) {
+    rays += st.rays, invalid += st.invalid_rays, visits += st.point_visits, culled += st.culled_visits;
+    packets += st.packets, packet_rays += st.packet_rays, node_tests += st.packet_node_tests, lanes += st.packet_active_lanes;
+  }
+  void store(TraceStats* out) const {
+    if (!out) return;
+    *out = {rays.load(), invalid.load(), visits.load(), culled.load(), packets.load(), packet_rays.load(),
+            node_tests.load(), lanes.load()};
+  }
+};
+
+}  // namespace
+
+size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options, TraceStats* stats) const {
   const rtp::PackageTraceOptions opt = impl_->trace_options(options);
-  return guarded(impl_->path, [&] {
+  StatsSum sum;
+  const size_t n_hit = guarded(impl_->path, [&] {
     return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
       auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits + first);
-      impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), h, n, opt);
+      sum.add(impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), h, n, opt));
       size_t k = 0;
       for (size_t i = 0; i < n; ++i) k += h[i].instance != rtp::fmt::Hit::kNone;
       return k;
     });
   });
+  sum.store(stats);
+  return n_hit;
 }
 
-size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options) const {
-  const rtp::PackageTraceOptions opt = impl_->trace_options(options);
-  return guarded(impl_->path, [&] {
+size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options,
+                         TraceStats* stats) const {
+  rtp::PackageTraceOptions opt = impl_->trace_options(options);
+  opt.packet = 0;  // any hits through the package go ray by ray
+  StatsSum sum;
+  const size_t n_occ = guarded(impl_->path, [&] {
     return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
-      impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), occluded + first, n, opt);
+      sum.add(impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), occluded + first, n, opt));
       size_t k = 0;
       for (size_t i = 0; i < n; ++i) k += occluded[first + i];
       return k;
     });
   });
+  sum.store(stats);
+  return n_occ;
 }
 
 void Package::shade(const Hit* hits, Shading* out, size_t count) const {
@@ -204,16 +250,26 @@ void Package::shade(const Hit* hits, Shading* out, size_t count) const {
   });
 }
 
-std::vector<Ray> Package::camera_rays(int width, int height, int camera) const {
-  if (width <= 0 || height <= 0 || int64_t(width) * height > (int64_t(1) << 28))
-    throw Error(int(rtp::ExitCode::kUsage), "camera_rays: " + std::to_string(width) + "x" + std::to_string(height) +
-                                                " is not a size (1 to 2^28 pixels)");
+std::vector<Ray> Package::camera_rays(int width, int height, int camera, PixelOrder order) const {
+  check_image_size("camera_rays", width, height);
+  if (order != PixelOrder::kRows && order != PixelOrder::kTiles)
+    throw Error(int(rtp::ExitCode::kUsage), "camera_rays: PixelOrder " + std::to_string(int(order)) + " is not an order");
   return guarded(impl_->path, [&] {
     const rtp::CameraRays cr = rtp::camera_rays(*impl_->reader, width, height, camera);
     std::vector<Ray> out(cr.rays.size());
-    if (!out.empty()) std::memcpy(out.data(), cr.rays.data(), out.size() * sizeof(Ray));
+    if (order == PixelOrder::kTiles) {
+      const std::vector<uint32_t> pixel = rtp::hilbert_tile_order(width, height);
+      for (size_t k = 0; k < out.size(); ++k) std::memcpy(&out[k], &cr.rays[pixel[k]], sizeof(Ray));
+    } else if (!out.empty()) {
+      std::memcpy(out.data(), cr.rays.data(), out.size() * sizeof(Ray));
+    }
     return out;
   });
+}
+
+std::vector<uint32_t> tile_order(int width, int height) {
+  check_image_size("tile_order", width, height);
+  return rtp::hilbert_tile_order(width, height);
 }
 
 }  // namespace rtpack

@@ -97,7 +97,33 @@ struct TraceOptions {
   Isa isa = Isa::kBest;  // kBest: the widest this CPU runs; asking for more than it runs throws
   bool cull = true;      // test batching points' culling DAGs first (same hits either way)
   int threads = 0;       // 0: all cores (TBB); 1: the calling thread only
+  // trace(): each run of `packet` consecutive rays (4, 8 or 16, from the first ray) goes through the
+  // package as one packet (Wu 2016); 0 traces ray by ray. The hits are the same bit for bit; packets
+  // are faster on coherent runs such as camera_rays(..., PixelOrder::kTiles) and slower on scattered
+  // rays. Isa::kScalar traces single rays; occluded() ignores it (single rays).
+  int packet = 0;
 };
+
+// What a trace() or occluded() call did (summed over its threads), for a renderer's diagnostics.
+struct TraceStats {
+  uint64_t rays = 0;
+  uint64_t invalid_rays = 0;           // returned as misses
+  uint64_t batching_point_visits = 0;  // batching points whose box a ray entered within its interval
+  uint64_t culled_visits = 0;          // of those, skipped because the culling DAG is empty along the ray
+  // TraceOptions::packet: packets traced, the traced (not culled) batching-point visits made in them
+  // (the others went alone: another octant, too few rays left), node tests by packets and their active
+  // rays summed (SIMD utilization = packet_active_lanes / (packet_node_tests * packet), Wu 2016 §4.2.1).
+  uint64_t packets = 0, packet_ray_visits = 0, packet_node_tests = 0, packet_active_lanes = 0;
+};
+
+// The order of camera_rays(): kRows is row-major, top row first (ray y * width + x is pixel (x, y));
+// kTiles is 4x4 pixel tiles along a Hilbert curve, each tile's pixels along its own 4x4 curve, so runs
+// of 4, 8 and 16 rays are 2x2, 2x4 and 4x4 pixel blocks (packets); tile_order() maps them to pixels.
+enum class PixelOrder { kRows, kTiles };
+
+// The pixel (y * width + x) of each ray of camera_rays(width, height, camera, PixelOrder::kTiles), in
+// order: every pixel once. Throws rtpack::Error (code 1) for a size camera_rays() refuses.
+RTPACK_API std::vector<uint32_t> tile_order(int width, int height);
 
 class RTPACK_API Error : public std::runtime_error {
  public:
@@ -122,16 +148,19 @@ class RTPACK_API Package {
   const std::vector<BatchingPoint>& batching_points() const;
   const std::vector<Mesh>& meshes() const;
 
-  // Closest hit of each ray (hits[i] for rays[i]). Returns the number of rays that hit.
-  size_t trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options = {}) const;
+  // Closest hit of each ray (hits[i] for rays[i]). Returns the number of rays that hit; fills *stats
+  // when given.
+  size_t trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options = {},
+               TraceStats* stats = nullptr) const;
   // Any hit within [tnear, tfar]: occluded[i] = 1 or 0. Returns the number occluded.
-  size_t occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options = {}) const;
+  size_t occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options = {},
+                  TraceStats* stats = nullptr) const;
   // Interpolated normal and uv of each hit, from the package's attribute chunks (rtpack-convert
   // --attributes normal,uv); zeros where the package has none. The chunks load on the first call.
   void shade(const Hit* hits, Shading* out, size_t count) const;
   // Primary rays of the package's glTF camera `camera` (-1: the first, or an automatic camera framing
-  // the bounds when there is none), width x height, row-major, top row first.
-  std::vector<Ray> camera_rays(int width, int height, int camera = -1) const;
+  // the bounds when there is none), width x height, in `order` (row-major, top row first by default).
+  std::vector<Ray> camera_rays(int width, int height, int camera = -1, PixelOrder order = PixelOrder::kRows) const;
 
  private:
   struct Impl;
