@@ -39,38 +39,48 @@ struct PacketRays {
 // half of gallery's primary rays went alone) keeps the frustum conservative: (plane − o)·inf has the
 // sign of the exact difference, which the interval end o_near / o_far bounds for every ray, and 0·inf
 // = NaN is dropped by vmax/vmin there as in each ray's own test, so that axis then bounds nothing.
-template <int P>
+// The bounds are reduced over the SoA lanes with VP vectors (issue 11: lane by lane, compare and branch
+// per value, this was a third of the per-packet set-up on BoomBox); every lane is one of `lanes`' rays,
+// so they are the same bounds (valid rays carry no NaN; a zero's sign cannot change a product's test).
+template <class VP, int P>
 inline bool make_packet(const detail::BoxRay* box, uint32_t lanes, PacketRays<P>* out) {
   const int first = lowest_bit(lanes);
   const uint8_t octant = box[first].octant;
-  float omin[3], omax[3], rmin[3], rmax[3];
-  for (int a = 0; a < 3; ++a) omin[a] = omax[a] = box[first].org[a], rmin[a] = rmax[a] = box[first].rcp[a];
-  float tmin = box[first].tnear;
-  for (uint32_t m = lanes; m; m &= m - 1) {
-    const detail::BoxRay& b = box[lowest_bit(m)];
-    if (b.octant != octant) return false;
-    for (int a = 0; a < 3; ++a) {
-      const bool finite = std::fabs(b.rcp[a]) <= FLT_MAX;
-      if (finite != (std::fabs(box[first].rcp[a]) <= FLT_MAX) || (!finite && b.rcp[a] != box[first].rcp[a]))
-        return false;
-      omin[a] = min_keep(b.org[a], omin[a]), omax[a] = max_keep(b.org[a], omax[a]);
-      rmin[a] = min_keep(b.rcp[a], rmin[a]), rmax[a] = max_keep(b.rcp[a], rmax[a]);
-    }
-    tmin = min_keep(b.tnear, tmin);
-  }
+  uint32_t other_octant = 0;
   for (int i = 0; i < P; ++i) {
     const detail::BoxRay& b = box[(lanes >> i) & 1u ? i : first];
     out->ox[i] = b.org[0], out->oy[i] = b.org[1], out->oz[i] = b.org[2];
     out->rx[i] = b.rcp[0], out->ry[i] = b.rcp[1], out->rz[i] = b.rcp[2];
     out->tnear[i] = b.tnear;
+    other_octant |= uint32_t(b.octant ^ octant);
   }
+  if (other_octant) return false;
+  const float* org[3] = {out->ox, out->oy, out->oz};
+  const float* rcp[3] = {out->rx, out->ry, out->rz};
+  const VP big = VP::splat(FLT_MAX);
   for (int a = 0; a < 3; ++a) {
+    VP omin = VP::load(org[a]), omax = omin, rmin = VP::load(rcp[a]), rmax = rmin;
+    uint32_t finite = (vabs(rmin) <= big).bits();
+    for (int off = VP::kLanes; off < P; off += VP::kLanes) {
+      const VP o = VP::load(org[a] + off), r = VP::load(rcp[a] + off);
+      omin = vmin(o, omin), omax = vmax(o, omax), rmin = vmin(r, rmin), rmax = vmax(r, rmax);
+      finite |= (vabs(r) <= big).bits() << off;
+    }
+    const float lo = hmin(rmin), hi = hmax(rmax);
+    const uint32_t all = P == 32 ? ~0u : (1u << P) - 1;
+    // All finite, or all the same infinity (then rmin == rmax == it).
+    if (finite != all && (finite != 0 || lo != hi)) return false;
     const bool neg = (octant >> a) & 1u;
-    out->o_near[a] = neg ? omin[a] : omax[a];
-    out->o_far[a] = neg ? omax[a] : omin[a];
-    out->rmin[a] = rmin[a], out->rmax[a] = rmax[a];
+    const float o_lo = hmin(omin), o_hi = hmax(omax);
+    out->o_near[a] = neg ? o_lo : o_hi;
+    out->o_far[a] = neg ? o_hi : o_lo;
+    out->rmin[a] = lo, out->rmax[a] = hi;
   }
-  out->tnear_min = tmin;
+  out->tnear_min = hmin([&] {
+    VP t = VP::load(out->tnear);
+    for (int off = VP::kLanes; off < P; off += VP::kLanes) t = vmin(VP::load(out->tnear + off), t);
+    return t;
+  }());
   out->octant = octant;
   return true;
 }

@@ -40,6 +40,15 @@ inline F4 vmin(F4 a, F4 b) { return {_mm_min_ps(a.v, b.v)}; }
 inline F4 vmax(F4 a, F4 b) { return {_mm_max_ps(a.v, b.v)}; }
 inline F4 vabs(F4 a) { return {_mm_andnot_ps(_mm_set1_ps(-0.0f), a.v)}; }
 inline F4 vselect(M4 m, F4 a, F4 b) { return {_mm_blendv_ps(b.v, a.v, m.v)}; }  // m ? a : b
+// The least / greatest lane (vminps/vmaxps pairwise; lanes without NaN, as the packet set-up has).
+inline float hmin(F4 a) {
+  const __m128 m = _mm_min_ps(a.v, _mm_movehl_ps(a.v, a.v));
+  return _mm_cvtss_f32(_mm_min_ss(m, _mm_shuffle_ps(m, m, 1)));
+}
+inline float hmax(F4 a) {
+  const __m128 m = _mm_max_ps(a.v, _mm_movehl_ps(a.v, a.v));
+  return _mm_cvtss_f32(_mm_max_ss(m, _mm_shuffle_ps(m, m, 1)));
+}
 
 struct M8 {
   __m256 v;
@@ -69,6 +78,8 @@ inline F8 vmin(F8 a, F8 b) { return {_mm256_min_ps(a.v, b.v)}; }
 inline F8 vmax(F8 a, F8 b) { return {_mm256_max_ps(a.v, b.v)}; }
 inline F8 vabs(F8 a) { return {_mm256_andnot_ps(_mm256_set1_ps(-0.0f), a.v)}; }
 inline F8 vselect(M8 m, F8 a, F8 b) { return {_mm256_blendv_ps(b.v, a.v, m.v)}; }  // m ? a : b
+inline float hmin(F8 a) { return hmin(F4{_mm_min_ps(_mm256_castps256_ps128(a.v), _mm256_extractf128_ps(a.v, 1))}); }
+inline float hmax(F8 a) { return hmax(F4{_mm_max_ps(_mm256_castps256_ps128(a.v), _mm256_extractf128_ps(a.v, 1))}); }
 
 // Octant order as a byte shuffle: bit i of the result = bit (order[i] & 15) of `mask`, 0 when
 // order[i] has bit 7 set (pshufb semantics, matched by ordered_mask_scalar).

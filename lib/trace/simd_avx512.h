@@ -41,6 +41,13 @@ inline M16 operator!=(F16 a, F16 b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_
 inline F16 vmin(F16 a, F16 b) { return {_mm512_maskz_min_ps(0xFFFF, a.v, b.v)}; }
 inline F16 vmax(F16 a, F16 b) { return {_mm512_maskz_max_ps(0xFFFF, a.v, b.v)}; }
 inline F16 vselect(M16 m, F16 a, F16 b) { return {_mm512_mask_blend_ps(m.k, b.v, a.v)}; }  // m ? a : b
+// The two 8-lane halves by the zero-masked extract with all lanes kept (as vmin/vmax: GCC 12's
+// unmasked extract, which _mm512_castps512_ps256 also uses, reads an "undefined" register that
+// -Wmaybe-uninitialized reports). AVX-512DQ, which this ISA requires.
+inline __m256 lower_half(__m512 v) { return _mm512_maskz_extractf32x8_ps(0xFF, v, 0); }
+inline __m256 upper_half(__m512 v) { return _mm512_maskz_extractf32x8_ps(0xFF, v, 1); }
+inline float hmin(F16 a) { return hmin(F8{_mm256_min_ps(lower_half(a.v), upper_half(a.v))}); }
+inline float hmax(F16 a) { return hmax(F8{_mm256_max_ps(lower_half(a.v), upper_half(a.v))}); }
 inline F16 vabs(F16 a) {
   return {_mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(a.v), _mm512_set1_epi32(0x7FFFFFFF)))};
 }

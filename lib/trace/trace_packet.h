@@ -43,7 +43,7 @@ inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, fl
     L.sync(lane);
   };
   PacketRays<P> own;
-  if (bit_count(mask) < kPacketMinActive || (!ready && !make_packet<P>(box, mask, &own))) {
+  if (bit_count(mask) < kPacketMinActive || (!ready && !make_packet<typename K::template Vec<P>, P>(box, mask, &own))) {
     for (uint32_t m = mask; m; m &= m - 1) single(mesh.root, lowest_bit(m));
     return Walk::kDone;
   }
@@ -111,7 +111,7 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
     for (int a = 0; a < 3; ++a) world_org[i][a] = L.ray[i].org[a], world_dir[i][a] = L.ray[i].dir[a];
   if (s.direct != kNoDirectInstance) return packet_mesh<K>(s, s.direct, mask, world_org, world_dir, L.world, L, pc);
   PacketRays<P> pr;
-  if (!make_packet<P>(L.world, mask, &pr)) return Walk::kOverflow;  // the caller traces them alone
+  if (!make_packet<typename K::template Vec<P>, P>(L.world, mask, &pr)) return Walk::kOverflow;  // the caller traces them alone
   Walk status = Walk::kDone;
   auto single = [&](uint32_t ref, int lane) {
     auto leaf = [&](uint32_t r) { return instance_leaf_one<K, kOct>(s, r, L.ray[lane], L.world[lane], L.sink[lane]); };
