@@ -157,6 +157,45 @@ TEST(TracePackets, PacketsThroughRotatedMirroredScaledInstancesEqualSingleRays) 
   expect_packets_equal_single<16, 16>(w16.view(), rays, "instances primary", 0.1, 0.9);
 }
 
+// A scene of one moved instance (a glTF root node with a transform, as BoomBox has) and one of an
+// unmoved and a moved instance: the top level is one leaf, which packets enter without a world packet
+// (trace_packet.h), making one only for the unmoved instance.
+TEST(TracePackets, TopLevelOfOneLeafEqualsSingleRays) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  for (const bool with_unmoved : {false, true}) {
+    Scene s;
+    s.meshes.push_back(make_icosphere(3));
+    Instance moved;
+    const double c = std::cos(0.9), sn = std::sin(0.9);
+    moved.transform(0, 0) = -0.8 * c, moved.transform(0, 1) = -0.8 * sn;  // mirrored, rotated, scaled
+    moved.transform(1, 0) = -0.8 * sn, moved.transform(1, 1) = 0.8 * c;
+    moved.transform(2, 2) = 0.5;
+    moved.transform(0, 3) = 1.5, moved.transform(1, 3) = -0.25, moved.transform(2, 3) = 0.75;
+    moved.mirrored = true;
+    s.instances.push_back(moved);
+    if (with_unmoved) s.instances.push_back(Instance{});
+    s.bounds = Aabb{};
+    for (const Instance& in : s.instances)
+      for (uint32_t v : s.meshes[in.mesh].indices) s.bounds.grow(in.transform.apply(to_d(s.meshes[in.mesh].positions[v])));
+    BuildOptions bo;
+    bo.top_leaf_size = 2;  // both instances of the second scene in the one leaf
+    const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(s, bo);
+    ASSERT_EQ(bvh.view().direct, kNoDirectInstance);
+    ASSERT_TRUE(fmt::ChildRef::is_leaf(bvh.view().top_root));
+    RayGenOptions gen;
+    gen.seed = 6;
+    gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(bvh.view(), r, h, n, {}); };
+    const std::vector<fmt::Ray> rays = generate_rays(s, RayKind::kPrimary, 4096, gen);
+    std::vector<fmt::Hit> h(rays.size());
+    trace_closest<8, 8>(bvh.view(), rays.data(), h.data(), rays.size(), {});
+    std::vector<size_t> per_instance(s.instances.size(), 0);
+    for (const fmt::Hit& x : h)
+      if (x.instance != fmt::Hit::kNone) ++per_instance.at(x.instance);
+    for (size_t i = 0; i < per_instance.size(); ++i) EXPECT_GT(per_instance[i], rays.size() / 20) << "instance " << i;
+    expect_packets_equal_single<8, 8>(bvh.view(), rays, with_unmoved ? "unmoved + moved primary" : "one moved primary", 0.1, 0.9);
+  }
+}
+
 // Packets of 16 whose rays point into different octants, or carry NaN, tnear > tfar, zero and
 // axis-parallel directions: the first valid ray's octant forms the packet, the others go alone.
 TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {

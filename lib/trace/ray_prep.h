@@ -103,6 +103,47 @@ RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
 #endif
 }
 
+#if defined(__AVX2__)
+// transform_ray's operands in registers: the columns of L^-1 in double and T. Built once per instance
+// visit, so a packet moves its rays with the record's loads, transpose and conversions done once
+// (issue 11: per lane they were repeated, the stores to the lanes' rays keeping the compiler from
+// hoisting them). apply() is transform_ray's AVX2 form, the same operations lane by lane.
+struct InstanceMove {
+  __m256d c0, c1, c2, t;
+  RTP_KERNEL_INLINE explicit InstanceMove(const fmt::InstanceRecord& inst) {
+    // Reads stay inside the record (rows of 4 floats from 60, 72, 84).
+    const float* m = inst.inverse_linear;
+    __m128 r0 = _mm_loadu_ps(m), r1 = _mm_loadu_ps(m + 3), r2 = _mm_loadu_ps(m + 6), r3 = _mm_setzero_ps();
+    _MM_TRANSPOSE4_PS(r0, r1, r2, r3);  // r0..r2: the columns (m[c], m[3+c], m[6+c], garbage)
+    c0 = _mm256_cvtps_pd(r0), c1 = _mm256_cvtps_pd(r1), c2 = _mm256_cvtps_pd(r2);
+    t = _mm256_setr_pd(inst.translation[0], inst.translation[1], inst.translation[2], 0.0);
+  }
+  // Lane r computes (m[3r]·x + m[3r+1]·y) + m[3r+2]·z in double, then rounds to float, exactly as the
+  // scalar form of transform_ray (issue 11: that form cost ~75 instructions per instance visit).
+  RTP_KERNEL_INLINE bool apply(const float org[3], const float dir[3], float out_org[3], float out_dir[3]) const {
+    const __m256d rel = _mm256_sub_pd(_mm256_cvtps_pd(_mm_setr_ps(org[0], org[1], org[2], 0.0f)), t);
+    const __m256d d = _mm256_cvtps_pd(_mm_setr_ps(dir[0], dir[1], dir[2], 0.0f));
+    const __m256d o = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(rel, 0x00)),
+                                                  _mm256_mul_pd(c1, _mm256_permute4x64_pd(rel, 0x55))),
+                                    _mm256_mul_pd(c2, _mm256_permute4x64_pd(rel, 0xAA)));
+    const __m256d v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(d, 0x00)),
+                                                  _mm256_mul_pd(c1, _mm256_permute4x64_pd(d, 0x55))),
+                                    _mm256_mul_pd(c2, _mm256_permute4x64_pd(d, 0xAA)));
+    const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    const __m256d limit = _mm256_set1_pd(double(FLT_MAX));
+    const int in_range = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(o, abs_mask), limit, _CMP_LE_OQ)) &
+                         _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v, abs_mask), limit, _CMP_LE_OQ));
+    if ((in_range & 7) != 7) return false;  // also NaN
+    alignas(16) float fo[4], fd[4];
+    const __m128 fdv = _mm256_cvtpd_ps(v);
+    _mm_store_ps(fo, _mm256_cvtpd_ps(o));
+    _mm_store_ps(fd, fdv);
+    for (int r = 0; r < 3; ++r) out_org[r] = fo[r], out_dir[r] = fd[r];
+    return (_mm_movemask_ps(_mm_cmpneq_ps(fdv, _mm_setzero_ps())) & 7) != 0;  // direction_usable
+  }
+};
+#endif
+
 // SPEC §2.4: org' = L^-1 (org - T), dir' = L^-1 dir in double, T the double translation kept apart
 // (issue 11: a float 3x4 inverse put a small instance at 3e6 up to 0.25 units off). org - T is exact
 // to 2^-53 of the larger magnitude and products of floats are exact in double, so the only rounding
@@ -110,33 +151,7 @@ RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
 RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[3],
                                      float out_dir[3]) {
 #if defined(__AVX2__)
-  // The same operations lane by lane, the three rows at once (issue 11: the scalar form cost ~75
-  // instructions per instance visit): lane r computes (m[3r]·x + m[3r+1]·y) + m[3r+2]·z in double, then
-  // rounds to float, exactly as below. Reads stay inside the record (rows of 4 floats from 60, 72, 84).
-  const float* m = inst.inverse_linear;
-  __m128 r0 = _mm_loadu_ps(m), r1 = _mm_loadu_ps(m + 3), r2 = _mm_loadu_ps(m + 6), r3 = _mm_setzero_ps();
-  _MM_TRANSPOSE4_PS(r0, r1, r2, r3);  // r0..r2: the columns (m[c], m[3+c], m[6+c], garbage)
-  const __m256d c0 = _mm256_cvtps_pd(r0), c1 = _mm256_cvtps_pd(r1), c2 = _mm256_cvtps_pd(r2);
-  const __m256d t = _mm256_setr_pd(inst.translation[0], inst.translation[1], inst.translation[2], 0.0);
-  const __m256d rel = _mm256_sub_pd(_mm256_cvtps_pd(_mm_setr_ps(org[0], org[1], org[2], 0.0f)), t);
-  const __m256d d = _mm256_cvtps_pd(_mm_setr_ps(dir[0], dir[1], dir[2], 0.0f));
-  const __m256d o = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(rel, 0x00)),
-                                                _mm256_mul_pd(c1, _mm256_permute4x64_pd(rel, 0x55))),
-                                  _mm256_mul_pd(c2, _mm256_permute4x64_pd(rel, 0xAA)));
-  const __m256d v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(d, 0x00)),
-                                                _mm256_mul_pd(c1, _mm256_permute4x64_pd(d, 0x55))),
-                                  _mm256_mul_pd(c2, _mm256_permute4x64_pd(d, 0xAA)));
-  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-  const __m256d limit = _mm256_set1_pd(double(FLT_MAX));
-  const int in_range = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(o, abs_mask), limit, _CMP_LE_OQ)) &
-                       _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v, abs_mask), limit, _CMP_LE_OQ));
-  if ((in_range & 7) != 7) return false;  // also NaN
-  alignas(16) float fo[4], fd[4];
-  const __m128 fdv = _mm256_cvtpd_ps(v);
-  _mm_store_ps(fo, _mm256_cvtpd_ps(o));
-  _mm_store_ps(fd, fdv);
-  for (int r = 0; r < 3; ++r) out_org[r] = fo[r], out_dir[r] = fd[r];
-  return (_mm_movemask_ps(_mm_cmpneq_ps(fdv, _mm_setzero_ps())) & 7) != 0;  // direction_usable
+  return InstanceMove(inst).apply(org, dir, out_org, out_dir);
 #else
   const double rel[3] = {double(org[0]) - inst.translation[0], double(org[1]) - inst.translation[1],
                          double(org[2]) - inst.translation[2]};

@@ -110,8 +110,14 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
   for (int i = 0; i < P; ++i)
     for (int a = 0; a < 3; ++a) world_org[i][a] = L.ray[i].org[a], world_dir[i][a] = L.ray[i].dir[a];
   if (s.direct != kNoDirectInstance) return packet_mesh<K>(s, s.direct, mask, world_org, world_dir, L.world, L, pc);
+  // The world rays' packet, made when first needed: a top level that is one leaf (a scene of one moved
+  // instance, e.g. a glTF root node with a transform) tests no node, and a moved instance makes its own.
   PacketRays<P> pr;
-  if (!make_packet<typename K::template Vec<P>, P>(L.world, mask, &pr)) return Walk::kOverflow;  // the caller traces them alone
+  int pr_state = 0;  // 0: not made, 1: made, 2: the rays cannot form one (they go alone)
+  auto world_packet = [&]() -> const PacketRays<P>* {
+    if (pr_state == 0) pr_state = make_packet<typename K::template Vec<P>, P>(L.world, mask, &pr) ? 1 : 2;
+    return pr_state == 1 ? &pr : nullptr;
+  };
   Walk status = Walk::kDone;
   auto single = [&](uint32_t ref, int lane) {
     auto leaf = [&](uint32_t r) { return instance_leaf_one<K, kOct>(s, r, L.ray[lane], L.world[lane], L.sink[lane]); };
@@ -123,22 +129,28 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
     for (uint32_t k = first; k < first + count && (rays & L.live); ++k) {
       const uint32_t id = s.top_instances[k];
       if (moves_no_ray(s.instances[id])) {  // the world rays and their packet as they are
-        if (packet_mesh<K>(s, id, rays & L.live, world_org, world_dir, L.world, L, pc, &pr) == Walk::kOverflow)
+        if (packet_mesh<K>(s, id, rays & L.live, world_org, world_dir, L.world, L, pc, world_packet()) == Walk::kOverflow)
           status = Walk::kOverflow;
         continue;
       }
       float org[P][3], dir[P][3];
       detail::BoxRay box[P];
       uint32_t in = 0;
+      const InstanceMove move(s.instances[id]);  // transform_ray's operands, once for the packet
       for (uint32_t m = rays & L.live; m; m &= m - 1) {
         const int lane = lowest_bit(m);
-        if (!transform_ray(s.instances[id], L.ray[lane].org, L.ray[lane].dir, org[lane], dir[lane])) continue;
+        if (!move.apply(L.ray[lane].org, L.ray[lane].dir, org[lane], dir[lane])) continue;
         setup_box_ray(org[lane], dir[lane], L.ray[lane].tnear, &box[lane]);
         in |= 1u << lane;
       }
       if (in && packet_mesh<K>(s, id, in, org, dir, box, L, pc) == Walk::kOverflow) status = Walk::kOverflow;
     }
   };
+  if (fmt::ChildRef::is_leaf(s.top_root)) {  // walk_packet would call the leaf and stop
+    leaf(s.top_root, mask & L.live);
+    return status;
+  }
+  if (!world_packet()) return Walk::kOverflow;  // the caller traces them alone
   const Walk w = walk_packet<K, W, P>(s.top_nodes, s.top_root, mask, pr, L.tfar, L.live, leaf, single, pc);
   return w == Walk::kOverflow ? w : status;
 }
