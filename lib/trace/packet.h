@@ -3,8 +3,11 @@
 // AVX"): P rays of one octant test a node together, first as one interval frustum against the node's W
 // children, then child by child with one lane per ray; a packet thinned to a few rays finishes the
 // subtree ray by ray with the single-ray walk. SIMD only (kernels_simd.h): P rays in K::Vec<P>.
+#include <immintrin.h>
+
 #include <cfloat>
 #include <cmath>
+#include <cstddef>
 
 #include "formats/bvh_layout.h"
 #include "trace/kernel_common.h"
@@ -32,6 +35,26 @@ struct PacketRays {
   uint8_t octant;
 };
 
+// The BoxRay layout transpose8x8 reads: one ray per 8 floats, its fields at these float positions.
+static_assert(sizeof(detail::BoxRay) == 32 && offsetof(detail::BoxRay, org) == 0 && offsetof(detail::BoxRay, rcp) == 12 &&
+              offsetof(detail::BoxRay, tnear) == 24 && offsetof(detail::BoxRay, octant) == 28);
+
+// r[k] = row k of an 8x8 float matrix on entry, column k on return (unpack, shuffle, lane permute).
+inline void transpose8x8(__m256 r[8]) {
+  const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
+  const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
+  const __m256 t4 = _mm256_unpacklo_ps(r[4], r[5]), t5 = _mm256_unpackhi_ps(r[4], r[5]);
+  const __m256 t6 = _mm256_unpacklo_ps(r[6], r[7]), t7 = _mm256_unpackhi_ps(r[6], r[7]);
+  const __m256 s0 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0)), s1 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 s2 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0)), s3 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 s4 = _mm256_shuffle_ps(t4, t6, _MM_SHUFFLE(1, 0, 1, 0)), s5 = _mm256_shuffle_ps(t4, t6, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 s6 = _mm256_shuffle_ps(t5, t7, _MM_SHUFFLE(1, 0, 1, 0)), s7 = _mm256_shuffle_ps(t5, t7, _MM_SHUFFLE(3, 2, 3, 2));
+  r[0] = _mm256_permute2f128_ps(s0, s4, 0x20), r[1] = _mm256_permute2f128_ps(s1, s5, 0x20);
+  r[2] = _mm256_permute2f128_ps(s2, s6, 0x20), r[3] = _mm256_permute2f128_ps(s3, s7, 0x20);
+  r[4] = _mm256_permute2f128_ps(s0, s4, 0x31), r[5] = _mm256_permute2f128_ps(s1, s5, 0x31);
+  r[6] = _mm256_permute2f128_ps(s2, s6, 0x31), r[7] = _mm256_permute2f128_ps(s3, s7, 0x31);
+}
+
 // Fills `out` from the rays of `lanes` (box forms already set up). False when they do not share an
 // octant, or when on one axis some reciprocal directions are infinite (a zero or denormal component)
 // and the others are not the same infinity: such rays go alone. Lanes outside `lanes` copy the first
@@ -47,12 +70,29 @@ inline bool make_packet(const detail::BoxRay* box, uint32_t lanes, PacketRays<P>
   const int first = lowest_bit(lanes);
   const uint8_t octant = box[first].octant;
   uint32_t other_octant = 0;
-  for (int i = 0; i < P; ++i) {
-    const detail::BoxRay& b = box[(lanes >> i) & 1u ? i : first];
-    out->ox[i] = b.org[0], out->oy[i] = b.org[1], out->oz[i] = b.org[2];
-    out->rx[i] = b.rcp[0], out->ry[i] = b.rcp[1], out->rz[i] = b.rcp[2];
-    out->tnear[i] = b.tnear;
-    other_octant |= uint32_t(b.octant ^ octant);
+  if constexpr (P % 8 == 0) {
+    // Eight BoxRays (32 bytes each: org, rcp, tnear, octant) transposed into the SoA columns at once
+    // (issue 11: field by field this loop was a fifth of a packet's instance-level set-up).
+    float* column[7] = {out->ox, out->oy, out->oz, out->rx, out->ry, out->rz, out->tnear};
+    const __m256i octant_v = _mm256_set1_epi32(octant), low_byte = _mm256_set1_epi32(0xFF);
+    for (int off = 0; off < P; off += 8) {
+      __m256 r[8];
+      for (int k = 0; k < 8; ++k)
+        r[k] = _mm256_loadu_ps(reinterpret_cast<const float*>(&box[(lanes >> (off + k)) & 1u ? off + k : first]));
+      transpose8x8(r);
+      for (int c = 0; c < 7; ++c) _mm256_storeu_ps(column[c] + off, r[c]);
+      // Lane 7 is the octant byte and three padding bytes: only the byte is compared.
+      const __m256i oct = _mm256_and_si256(_mm256_castps_si256(r[7]), low_byte);
+      other_octant |= ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(oct, octant_v)))) & 0xFFu;
+    }
+  } else {
+    for (int i = 0; i < P; ++i) {
+      const detail::BoxRay& b = box[(lanes >> i) & 1u ? i : first];
+      out->ox[i] = b.org[0], out->oy[i] = b.org[1], out->oz[i] = b.org[2];
+      out->rx[i] = b.rcp[0], out->ry[i] = b.rcp[1], out->rz[i] = b.rcp[2];
+      out->tnear[i] = b.tnear;
+      other_octant |= uint32_t(b.octant ^ octant);
+    }
   }
   if (other_octant) return false;
   const float* org[3] = {out->ox, out->oy, out->oz};
