@@ -21,6 +21,7 @@
 #include "scene/import.h"
 #include "trace/package_tracer.h"
 #include "trace/tile_order.h"
+#include "test_trace_util.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
@@ -82,12 +83,7 @@ TEST(TileOrder, EveryPixelOnceAndAlignedRunsAreCompactBlocks) {
   EXPECT_TRUE(hilbert_tile_order(0, 5).empty());
 }
 
-std::vector<Isa> simd_isas() {
-  std::vector<Isa> out;
-  for (Isa isa : {Isa::kAvx2, Isa::kAvx512})
-    if (static_cast<int>(isa) <= static_cast<int>(detect_isa())) out.push_back(isa);
-  return out;
-}
+using trace_test::simd_isas;
 
 struct Package {
   Scene scene;

@@ -23,12 +23,7 @@ uint32_t bits_of(float f) {
 }
 
 // The SIMD ISAs to compare with the scalar reference (those this CPU runs).
-std::vector<Isa> simd_isas() {
-  std::vector<Isa> out;
-  if (detect_isa() != Isa::kScalar) out.push_back(Isa::kAvx2);
-  if (detect_isa() == Isa::kAvx512) out.push_back(Isa::kAvx512);
-  return out;
-}
+using trace_test::simd_isas;
 
 float special_component(Rng& rng, float x) {
   switch (rng.below(24)) {

@@ -18,16 +18,12 @@
 #include "oracle/rays.h"
 #include "scene/import.h"
 #include "trace/trace.h"
+#include "test_trace_util.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
-std::vector<Isa> simd_isas() {
-  std::vector<Isa> out;
-  for (Isa isa : {Isa::kAvx2, Isa::kAvx512})
-    if (static_cast<int>(isa) <= static_cast<int>(detect_isa())) out.push_back(isa);
-  return out;
-}
+using trace_test::simd_isas;
 
 bool same(const fmt::Hit& a, const fmt::Hit& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 

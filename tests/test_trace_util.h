@@ -20,6 +20,14 @@ namespace rtp::trace_test {
 
 inline constexpr float kInf = std::numeric_limits<float>::infinity();
 
+// The SIMD ISAs this CPU runs (AVX2, AVX-512): the ones with packets and the vector kernels.
+inline std::vector<Isa> simd_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::kAvx2, Isa::kAvx512})
+    if (static_cast<int>(isa) <= static_cast<int>(detect_isa())) out.push_back(isa);
+  return out;
+}
+
 struct Rng {
   uint64_t s;
   explicit Rng(uint64_t seed) : s(seed * 0x9E3779B97F4A7C15ull + 1) {}
