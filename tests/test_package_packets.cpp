@@ -47,7 +47,7 @@ TEST(TileOrder, HilbertIndexIsABijectionWhoseNeighboursShareASide) {
 
 TEST(TileOrder, EveryPixelOnceAndAlignedRunsAreCompactBlocks) {
   struct Size { int w, h; };
-  for (const Size s : {Size{1, 1}, Size{7, 5}, Size{3, 17}, Size{64, 64}, Size{96, 64}, Size{1280, 720}, Size{130, 66}}) {
+  for (const Size s : {Size{1, 1}, Size{7, 5}, Size{3, 17}, Size{64, 64}, Size{96, 64}, Size{1280, 720}, Size{130, 66}, Size{1366, 768}}) {
     const std::vector<uint32_t> order = hilbert_tile_order(s.w, s.h);
     ASSERT_EQ(order.size(), size_t(s.w) * size_t(s.h)) << s.w << "x" << s.h;
     std::vector<uint8_t> seen(order.size(), 0);
@@ -55,10 +55,16 @@ TEST(TileOrder, EveryPixelOnceAndAlignedRunsAreCompactBlocks) {
       ASSERT_LT(p, order.size());
       ASSERT_EQ(seen[p]++, 0) << s.w << "x" << s.h << ": pixel " << p << " twice";
     }
-    if (s.w % kTileSide || s.h % kTileSide) continue;  // cut tiles shift the runs: checked below
-    // Runs of 4 / 8 / 16 aligned in the order: 2x2, 2x4 (or 4x2), 4x4 blocks; consecutive tiles touch.
+    // Runs of 4 / 8 / 16 aligned in the order: 2x2, 2x4 (or 4x2), 4x4 blocks over all the whole tiles,
+    // which come before the cut ones (130x66: 8192 of its 8580 pixels); consecutive tiles touch.
+    const size_t whole = size_t(s.w / kTileSide) * size_t(s.h / kTileSide) * kTileSide * kTileSide;
+    for (size_t k = whole; k < order.size(); ++k) {  // the rest: pixels of cut tiles only
+      const uint32_t x = order[k] % uint32_t(s.w), y = order[k] / uint32_t(s.w);
+      ASSERT_TRUE(x >= uint32_t(s.w / kTileSide * kTileSide) || y >= uint32_t(s.h / kTileSide * kTileSide))
+          << s.w << "x" << s.h << ": pixel " << x << "," << y << " of a whole tile after the whole tiles";
+    }
     for (size_t run : {4u, 8u, 16u})
-      for (size_t b = 0; b < order.size(); b += run) {
+      for (size_t b = 0; b + run <= whole; b += run) {
         int x0 = s.w, x1 = -1, y0 = s.h, y1 = -1;
         for (size_t k = b; k < b + run; ++k) {
           const int x = int(order[k] % uint32_t(s.w)), y = int(order[k] / uint32_t(s.w));
@@ -68,7 +74,7 @@ TEST(TileOrder, EveryPixelOnceAndAlignedRunsAreCompactBlocks) {
       }
     // On a power-of-two square of tiles, every tile is a side neighbour of the one before.
     const int tiles_x = s.w / kTileSide, tiles_y = s.h / kTileSide;
-    if (tiles_x == tiles_y && (tiles_x & (tiles_x - 1)) == 0) {
+    if (s.w % kTileSide == 0 && s.h % kTileSide == 0 && tiles_x == tiles_y && (tiles_x & (tiles_x - 1)) == 0) {
       for (size_t b = kTileSide * kTileSide; b < order.size(); b += kTileSide * kTileSide) {
         const int ax = int(order[b - 1] % uint32_t(s.w)) / kTileSide, ay = int(order[b - 1] / uint32_t(s.w)) / kTileSide;
         const int bx = int(order[b] % uint32_t(s.w)) / kTileSide, by = int(order[b] / uint32_t(s.w)) / kTileSide;

@@ -33,6 +33,12 @@ std::vector<uint32_t> hilbert_tile_order(int width, int height) {
   for (uint32_t ty = 0; ty < tiles_y; ++ty)
     for (uint32_t tx = 0; tx < tiles_x; ++tx) tiles.push_back({hilbert_index(n, tx, ty), ty * tiles_x + tx});
   std::sort(tiles.begin(), tiles.end());
+  // Whole tiles first, then the tiles the right or bottom edge cuts (each in curve order): a cut tile has
+  // fewer than 16 pixels, so one in the middle would shift every later tile off the multiples of 16 that
+  // packets of 4, 8 and 16 start at (a 1366x768 image: every tile after the first right-edge tile).
+  std::stable_partition(tiles.begin(), tiles.end(), [&](const std::pair<uint64_t, uint32_t>& t) {
+    return (t.second % tiles_x + 1) * kTileSide <= w && (t.second / tiles_x + 1) * kTileSide <= h;
+  });
   // Within a tile: the 4x4 curve, as (x, y) offsets by position.
   uint32_t cell[kTileSide * kTileSide];
   for (uint32_t y = 0; y < kTileSide; ++y)
