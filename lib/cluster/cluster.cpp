@@ -348,8 +348,12 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   // Objects, in instance order: an instance of an instanced mesh is one object (the boxes computed in
   // parallel below), the single instance of a unique mesh one per piece. The unique meshes are split
   // in parallel (each on its own), then their pieces are numbered serially in instance order.
-  std::vector<Aabb> local(scene.meshes.size());
-  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { local[m] = scene.meshes[m].local_bounds(); });
+  // Local bounds once per instanced mesh (a unique mesh's are its pieces'); the converter reads them.
+  std::vector<Aabb>& local = plan.mesh_bounds;
+  local.assign(scene.meshes.size(), Aabb{});
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) {
+    if (plan.mesh_instanced[m]) local[m] = scene.meshes[m].local_bounds();
+  });
   const uint64_t piece_max = std::max<uint64_t>(1, uint64_t(double(plan.chunk_target) * opt.piece_fraction));
   const size_t n_inst = scene.instances.size();
   std::vector<size_t> first(n_inst + 1, 0);  // instance i's objects: [first[i], first[i + 1])
@@ -380,6 +384,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
         part.source[t] = src.source[piece.prim[t]];
       }
       piece.mesh = std::move(part);
+      piece.bounds = piece.mesh.local_bounds();
       split[u].push_back(std::move(piece));
     }
   });
@@ -392,7 +397,7 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
     std::vector<Object> mine;
     for (UniquePiece& piece : split[u]) {
       Object o;
-      o.box = instance_bounds(scene, scene.instances[i], piece.mesh.local_bounds());
+      o.box = instance_bounds(scene, scene.instances[i], piece.bounds);
       o.weight = piece.mesh.triangle_count();
       o.piece = uint32_t(plan.pieces.size());
       plan.pieces.push_back(std::move(piece));

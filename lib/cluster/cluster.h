@@ -25,6 +25,7 @@ struct UniquePiece {
   uint32_t instance = 0;             // the scene instance it came from
   Mesh mesh;                         // local space; Mesh::source still maps to the glTF triangle
   std::vector<uint32_t> prim;        // per triangle: its index in the original scene mesh
+  Aabb bounds;                       // mesh.local_bounds(), once (the converter reads it three times)
 };
 
 struct BatchingPoint {
@@ -45,6 +46,7 @@ struct Plan {
   ChunkBy chunk_by = ChunkBy::kInstanced;
   std::vector<uint8_t> mesh_instanced;   // per scene mesh: 1 if used by ≥ 2 instances
   std::vector<uint32_t> mesh_segment;    // per scene mesh: its segment, or kNoIndex
+  std::vector<Aabb> mesh_bounds;         // per scene mesh: local_bounds() if instanced, else empty
   std::vector<UniquePiece> pieces;
   std::vector<BatchingPoint> points;
   std::vector<MeshSegment> segments;

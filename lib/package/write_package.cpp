@@ -157,7 +157,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
     slots.push_back(fmt::kPieceBit | entry);
     records.push_back(r);
     global_ids.push_back(piece.instance);
-    const Box3f local = box_of(piece.mesh.local_bounds());
+    const Box3f local = box_of(piece.bounds);
     boxes.push_back(transform_bounds(src.transform, &local, 1));
   }
   std::map<uint32_t, uint32_t> mesh_slot;
@@ -327,7 +327,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   PackageWriter writer(path, o.zstd_level);
   ConvertReport rep;
   std::vector<Box3f> mesh_box(scene.meshes.size());  // once per mesh, not per instance
-  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t m) { mesh_box[m] = box_of(scene.meshes[m].local_bounds()); });
+  for (size_t m = 0; m < scene.meshes.size(); ++m) mesh_box[m] = box_of(plan.mesh_bounds[m]);
   const uint64_t n_seg = plan.segments.size(), n_pts = plan.points.size();
   // Progress in work units, not chunks: a chunk weighs its triangles, instances and 1, so a few large
   // chunks at the end do not hold the bar at 99 %. Resident chunks weigh 1 each.

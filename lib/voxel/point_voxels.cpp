@@ -107,7 +107,7 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
   tbb::parallel_for(size_t(0), todo.size(), [&](size_t i) {
     const Mesh& mesh = scene.meshes[todo[i]];
     Proxy& p = proxies_[todo[i]];
-    const Aabb b = mesh.local_bounds();
+    const Aabb b = plan.mesh_bounds[todo[i]];
     p.bounds = b;
     if (b.empty()) return;
     double ext = 0, mag = 0;
@@ -146,7 +146,7 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   double margin = 0, kappa = 1;
   for (size_t i = 0; i < bp.pieces.size(); ++i) {
     const UniquePiece& pc = plan.pieces[bp.pieces[i]];
-    piece_eff[i] = effective(scene.instances[pc.instance], pc.mesh.local_bounds());
+    piece_eff[i] = effective(scene.instances[pc.instance], pc.bounds);
   }
   for (size_t i = 0; i < bp.instances.size(); ++i) {
     const Instance& in = scene.instances[bp.instances[i]];
