@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 #include "voxel/voxel.h"
 
@@ -87,6 +89,28 @@ constexpr auto kAxisBits = [] {
   return t;
 }();
 
+// The cells [first, last] of one axis within block `block`, as that block's mask (first <= last, the
+// block meets them).
+inline uint64_t axis_mask(int axis, int first, int last, int block) {
+  const int a = std::max(first, 4 * block) - 4 * block, b = std::min(last, 4 * block + 3) - 4 * block;
+  return kAxisBits.axis[axis][((2u << (b - a)) - 1) << a];
+}
+
+// True when every cell of the box [f, l] (cell indices, inside the grid) is set: block by block.
+bool all_cells_set(const Grid& g, const int f[3], const int l[3]) {
+  for (int bz = f[2] >> 2; bz <= l[2] >> 2; ++bz) {
+    const uint64_t mz = axis_mask(2, f[2], l[2], bz);
+    for (int by = f[1] >> 2; by <= l[1] >> 2; ++by) {
+      const uint64_t myz = mz & axis_mask(1, f[1], l[1], by);
+      for (int bx = f[0] >> 2; bx <= l[0] >> 2; ++bx) {
+        const uint64_t m = myz & axis_mask(0, f[0], l[0], bx);
+        if ((g.block(uint32_t(bx), uint32_t(by), uint32_t(bz)) & m) != m) return false;
+      }
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
@@ -99,11 +123,6 @@ void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
     while (l[k] > f[k] && origin[k] + l[k] * cell > hi[k]) --l[k];
   }
   // Block by block: a block's cells in the box are the AND of three per-axis masks (bit x + 4y + 16z).
-  // The cells [first, last] within block `block` as a 4-bit set (first <= last, the block meets them).
-  const auto axis_mask = [](int axis, int first, int last, int block) {
-    const int a = std::max(first, 4 * block) - 4 * block, b = std::min(last, 4 * block + 3) - 4 * block;
-    return kAxisBits.axis[axis][((2u << (b - a)) - 1) << a];
-  };
   for (int bz = f[2] >> 2; bz <= l[2] >> 2; ++bz) {
     const uint64_t mz = axis_mask(2, f[2], l[2], bz);
     for (int by = f[1] >> 2; by <= l[1] >> 2; ++by) {
@@ -169,11 +188,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   }
   // Every cell the triangle could set is set already (neighbouring triangles of a dense mesh share
   // their cells: about a quarter of the bunny's at 128^3): nothing to test.
-  bool all_set = true;
-  for (int z = f[2]; z <= l[2] && all_set; ++z)
-    for (int y = f[1]; y <= l[1] && all_set; ++y)
-      for (int x = f[0]; x <= l[0] && all_set; ++x) all_set = g.get(uint32_t(x), uint32_t(y), uint32_t(z));
-  if (all_set) return;
+  if (all_cells_set(g, f, l)) return;
   const double dp = cell + 2 * margin;  // grown cell size; grown corner = origin + i*cell - margin
   // Plane: d1, d2 from the critical point c (dp where n > 0).
   double d1 = 0, d2 = 0;
@@ -194,75 +209,72 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
       ed[p][i] = -(nx * v[i][a] + ny * v[i][b]) + std::max(0.0, dp * nx) + std::max(0.0, dp * ny);
     }
   }
-  const int count[3] = {l[0] - f[0] + 1, l[1] - f[1] + 1, l[2] - f[2] + 1};
-  if (count[0] <= 4 && count[1] <= 4 && count[2] <= 4) {
-    // Schwarz & Seidel 2010 §3.1 by columns: the projected edge tests of plane (a, b) depend on the
-    // cell's a and b only, so each plane's 3 edges are evaluated once per column of the small box
-    // (at most 16 per plane) and the cells look up three bits; the bounding-box test is per axis.
-    double pc[3][4];
-    uint32_t axis_ok[3];
-    for (int k = 0; k < 3; ++k) {
-      axis_ok[k] = 0;
-      for (int i = 0; i < count[k]; ++i) {
-        pc[k][i] = org[k] + (f[k] + i) * cell - margin;
-        if (!(pc[k][i] > hi[k] - margin || pc[k][i] + dp < lo[k] + margin)) axis_ok[k] |= 1u << i;
+  // Schwarz & Seidel 2010 §3.1, by columns of the dominant projection: the plane (a, b) whose third
+  // axis w is the normal's largest component. A column (a, b) that passes that plane's bounding-box and
+  // edge tests holds the triangle's cells in a short run along w, bounded by the plane test; only that
+  // run (padded by two cells and the rounding below) is tested, with every test the exhaustive loop over
+  // the bounding box makes, in the same arithmetic, so the cells set are the same. A long thin
+  // triangle across a 10^3 box tests about its 10^2 cells instead of 10^3.
+  int w = 0;
+  for (int k = 1; k < 3; ++k)
+    if (std::fabs(n[k]) > std::fabs(n[w])) w = k;
+  const int P = w == 2 ? 0 : w + 1, a = P, b = P == 2 ? 0 : P + 1;  // plane P = (a, b), third axis w
+  const int others[2] = {P == 2 ? 0 : P + 1, P == 0 ? 2 : P - 1};
+  // The run along w: cells whose grown corner p has n·p in [-max(d1, d2), -min(d1, d2)] (the plane
+  // test), from n·p = n_a p_a + n_b p_b + n_w p_w solved for p_w. Slack: the rounding of both
+  // evaluations (relative 2^-52 per operation on magnitudes bounded by `mag`), in p_w units, and one
+  // cell more below. Runs of one or two cells are tested as they are.
+  const double np_lo = -std::max(d1, d2), np_hi = -std::min(d1, d2), nw = n[w], inv_nw = 1 / nw;
+  const double base_w = org[w] - margin;
+  const double wmag = std::max(std::fabs(lo[w]), std::fabs(hi[w])) + dp + std::fabs(base_w);
+  const bool solve = l[w] - f[w] >= 2 && std::fabs(nw) > 1e-150 && std::isfinite(inv_nw) && std::isfinite(np_lo) &&
+                     std::isfinite(np_hi);
+  const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
+  uint64_t bits = 0;  // one 4^3 block (most boxes): gathered and stored once
+  for (int ib = f[b]; ib <= l[b]; ++ib) {
+    const double pb = org[b] + ib * cell - margin;
+    if (pb > hi[b] - margin || pb + dp < lo[b] + margin) continue;  // bounding boxes (the range is padded)
+    for (int ia = f[a]; ia <= l[a]; ++ia) {
+      const double pa = org[a] + ia * cell - margin;
+      if (pa > hi[a] - margin || pa + dp < lo[a] + margin) continue;
+      bool column = true;
+      for (int i = 0; i < 3; ++i) column &= ex[P][i] * pa + ey[P][i] * pb + ed[P][i] >= 0;
+      if (!column) continue;
+      int w0 = f[w], w1 = l[w];
+      if (solve) {
+        const double k = n[a] * pa + n[b] * pb;
+        double t0 = (np_lo - k) * inv_nw, t1 = (np_hi - k) * inv_nw;
+        if (t0 > t1) std::swap(t0, t1);
+        const double mag = (std::fabs(n[a] * pa) + std::fabs(n[b] * pb) + std::fabs(d1) + std::fabs(d2)) * std::fabs(inv_nw) + wmag;
+        const double slack = 64 * std::numeric_limits<double>::epsilon() * mag;
+        double q0 = (t0 - slack - base_w) * inv_cell - 1, q1 = (t1 + slack - base_w) * inv_cell;
+        if (!(q0 >= w0)) q0 = w0;  // also NaN: the whole range
+        if (!(q1 <= w1)) q1 = w1;
+        if (q0 > q1) continue;
+        w0 = int(q0), w1 = int(q1);  // within [f, l], >= 0: truncation is floor
       }
-    }
-    uint32_t column_ok[3];  // plane p: bit ia + 4 ib
-    for (int p = 0; p < 3; ++p) {
-      const int a = p, b = p == 2 ? 0 : p + 1;
-      column_ok[p] = 0;
-      for (int ib = 0; ib < count[b]; ++ib)
-        for (int ia = 0; ia < count[a]; ++ia) {
-          bool inside = true;
-          for (int i = 0; i < 3; ++i) inside &= ex[p][i] * pc[a][ia] + ey[p][i] * pc[b][ib] + ed[p][i] >= 0;
-          column_ok[p] |= uint32_t(inside) << (ia + 4 * ib);
-        }
-    }
-    // Cells of one 4^3 block (most boxes) are gathered into its mask and stored once.
-    const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
-    uint64_t bits = 0;
-    for (int iz = 0; iz < count[2]; ++iz) {
-      if (!(axis_ok[2] >> iz & 1)) continue;
-      for (int iy = 0; iy < count[1]; ++iy) {
-        if (!(axis_ok[1] >> iy & 1) || !(column_ok[1] >> (iy + 4 * iz) & 1)) continue;
-        for (int ix = 0; ix < count[0]; ++ix) {
-          if (!(axis_ok[0] >> ix & 1) || !(column_ok[0] >> (ix + 4 * iy) & 1) || !(column_ok[2] >> (iz + 4 * ix) & 1))
-            continue;
-          const double np = n[0] * pc[0][ix] + n[1] * pc[1][iy] + n[2] * pc[2][iz];
-          if ((np + d1) * (np + d2) > 0) continue;
-          const uint32_t x = uint32_t(f[0] + ix), y = uint32_t(f[1] + iy), z = uint32_t(f[2] + iz);
-          if (one_block)
-            bits |= uint64_t(1) << ((x & 3) + 4 * (y & 3) + 16 * (z & 3));
-          else
-            g.set(x, y, z);
-        }
-      }
-    }
-    if (bits) g.or_block(uint32_t(f[0]) >> 2, uint32_t(f[1]) >> 2, uint32_t(f[2]) >> 2, bits);
-    return;
-  }
-  for (int z = f[2]; z <= l[2]; ++z) {
-    const double pz = org[2] + z * cell - margin;
-    if (pz > hi[2] - margin || pz + dp < lo[2] + margin) continue;  // bounding boxes (the range is padded)
-    for (int y = f[1]; y <= l[1]; ++y) {
-      const double py = org[1] + y * cell - margin;
-      if (py > hi[1] - margin || py + dp < lo[1] + margin) continue;
-      for (int x = f[0]; x <= l[0]; ++x) {
-        const double px = org[0] + x * cell - margin;
-        if (px > hi[0] - margin || px + dp < lo[0] + margin) continue;
-        const double np = n[0] * px + n[1] * py + n[2] * pz;
+      for (int iw = w0; iw <= w1; ++iw) {
+        double pc[3];
+        pc[a] = pa, pc[b] = pb, pc[w] = org[w] + iw * cell - margin;
+        if (pc[w] > hi[w] - margin || pc[w] + dp < lo[w] + margin) continue;
+        const double np = n[0] * pc[0] + n[1] * pc[1] + n[2] * pc[2];
         if ((np + d1) * (np + d2) > 0) continue;
-        const double pc[3] = {px, py, pz};
         bool inside = true;
-        for (int p = 0; p < 3; ++p) {
-          const double pa = pc[p], pb = pc[p == 2 ? 0 : p + 1];
-          for (int i = 0; i < 3; ++i) inside &= ex[p][i] * pa + ey[p][i] * pb + ed[p][i] >= 0;
+        for (const int p : others) {
+          const double qa = pc[p], qb = pc[p == 2 ? 0 : p + 1];
+          for (int i = 0; i < 3; ++i) inside &= ex[p][i] * qa + ey[p][i] * qb + ed[p][i] >= 0;
         }
-        if (inside) g.set(uint32_t(x), uint32_t(y), uint32_t(z));
+        if (!inside) continue;
+        uint32_t c[3];
+        c[a] = uint32_t(ia), c[b] = uint32_t(ib), c[w] = uint32_t(iw);
+        if (one_block)
+          bits |= uint64_t(1) << ((c[0] & 3) + 4 * (c[1] & 3) + 16 * (c[2] & 3));
+        else
+          g.set(c[0], c[1], c[2]);
       }
     }
   }
+  if (bits) g.or_block(uint32_t(f[0]) >> 2, uint32_t(f[1]) >> 2, uint32_t(f[2]) >> 2, bits);
 }
 
 void voxelize_triangle_thin(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v2) {
