@@ -21,8 +21,8 @@
 #include <immintrin.h>
 
 #include <array>
+#include <bit>
 #include <limits>
-#include <optional>
 
 #include "bvh/build_internal.h"
 #include "core/error.h"
@@ -66,12 +66,13 @@ struct VBox {
   }
 };
 
-// half_area(Box3f) of an SSE box without the round trip through memory: the same double arithmetic.
+// half_area(Box3f) of a non-empty SSE box without the round trip through memory: the same double
+// arithmetic. (The sweeps' boxes hold at least one primitive each: half_area's test for an empty box
+// would always pass.)
 inline double half_area_sse(__m128 lo, __m128 hi) {
   const __m128d exy = _mm_sub_pd(_mm_cvtps_pd(hi), _mm_cvtps_pd(lo));
   const __m128d ez = _mm_sub_sd(_mm_cvtps_pd(_mm_movehl_ps(hi, hi)), _mm_cvtps_pd(_mm_movehl_ps(lo, lo)));
   const double x = _mm_cvtsd_f64(exy), y = _mm_cvtsd_f64(_mm_unpackhi_pd(exy, exy)), z = _mm_cvtsd_f64(ez);
-  if (!(x >= 0 && y >= 0 && z >= 0)) return 0;  // empty
   return x * y + y * z + z * x;
 }
 
@@ -154,6 +155,18 @@ struct Bins {
         count[a][i] = 0;
       }
   }
+  // Bit i set when bin i of axis a holds a primitive: four counts per SSE2 compare.
+  uint64_t used(int a, uint32_t bins) const {
+    uint64_t m = 0;
+    uint32_t i = 0;
+    for (; i + 4 <= bins; i += 4) {
+      const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(&count[a][i]));
+      const int empty = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(c, _mm_setzero_si128())));
+      m |= uint64_t(~empty & 0xF) << i;
+    }
+    for (; i < bins; ++i) m |= uint64_t(count[a][i] != 0) << i;
+    return m;
+  }
   void add(const Bins& o, uint32_t bins) {
     for (int a = 0; a < 3; ++a)
       for (uint32_t i = 0; i < bins; ++i) {
@@ -192,6 +205,15 @@ struct BinBody {
   void join(const BinBody& o) { bins.add(o.bins, nb); }
 };
 
+// Large ranges: bins of chunks of kChunk primitives merged into `bins` (empty on entry: the merge with
+// empty bins keeps the bits). Out of line, so that the many small ranges' calls to find() do not carry
+// a second ~7 KiB Bins in their frame.
+[[gnu::noinline]] void bin_parallel(const PrimRef* p, uint32_t begin, uint32_t end, const BinMap& map, Bins& bins) {
+  BinBody body(p, map, map.bins);
+  tbb::parallel_reduce(tbb::blocked_range<uint32_t>(begin, end, kChunk), body);
+  bins.add(body.bins, map.bins);
+}
+
 }  // namespace
 
 Range Splitter::make_range(uint32_t begin, uint32_t end, uint32_t depth) const {
@@ -216,34 +238,25 @@ Split Splitter::find(const Range& r) const {
 
   // Bins are ~7 KiB: on the stack only for the duration of this call, not across the recursion.
   const uint32_t nb = p_.bins;
-  Bins local(nb);
-  const Bins* binned = &local;
-  std::optional<BinBody> body;
-  if (n < p_.parallel_threshold) {
-    bin_into(prims_, r.begin, r.end, map, local);
-  } else {
-    body.emplace(prims_, map, nb);
-    tbb::parallel_reduce(tbb::blocked_range<uint32_t>(r.begin, r.end, kChunk), *body);
-    binned = &body->bins;
-  }
-  const Bins& bins = *binned;
+  Bins bins(nb);
+  if (n < p_.parallel_threshold)
+    bin_into(prims_, r.begin, r.end, map, bins);
+  else
+    bin_parallel(prims_, r.begin, r.end, map, bins);
 
   // Sweep each axis over its non-empty bins: right-to-left suffix areas/counts, then left-to-right.
   // Planes between two non-empty bins all cost the same, and ties keep the first candidate (x before
   // y before z, lower plane first), so plane idx[j] + 1 stands for them: the same split as a sweep of
   // every bin, in at most n steps instead of `bins` for the many small ranges near the leaves.
   double best_cost = std::numeric_limits<double>::infinity();
-  std::array<double, kMaxBins> right_area{};
-  std::array<uint32_t, kMaxBins> right_count{}, idx{};
+  std::array<double, kMaxBins> right_area;  // written before read: no 1 KiB of zeroing per call
+  std::array<uint32_t, kMaxBins> right_count, idx;
   for (int a = 0; a < 3; ++a) {
     if (!map.usable[a]) continue;
-    // Branch-free: which bins are empty is data, and a mispredicted branch per bin was 30 % of this
-    // function's samples on FlightHelmet.
+    // The non-empty bins in order, from a mask: no branch per bin (which bins are empty is data; a
+    // mispredicted branch per bin was 30 % of this function's samples on FlightHelmet).
     uint32_t m = 0;
-    for (uint32_t i = 0; i < nb; ++i) {
-      idx[m] = i;
-      m += bins.count[a][i] != 0;
-    }
+    for (uint64_t used = bins.used(a, nb); used; used &= used - 1) idx[m++] = uint32_t(std::countr_zero(used));
     VBox acc;
     uint32_t cnt = 0;
     for (uint32_t j = m; j-- > 1;) {
