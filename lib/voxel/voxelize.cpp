@@ -26,8 +26,15 @@ void Grid::allocate_brick(uint32_t& slot) {
 }
 
 uint64_t Grid::count() const {
+  // SWAR bit count (baseline x86-64 has no popcnt: std::popcount is a libgcc call per block there,
+  // 1.2 % of a 10^5-instance forest's convert). Per 64-bit block: 2-, 4-, 8-bit sums, then one multiply.
   uint64_t n = 0;
-  for (uint64_t b : store_) n += uint64_t(std::popcount(b));
+  for (uint64_t b : store_) {
+    b -= (b >> 1) & 0x5555555555555555ull;
+    b = (b & 0x3333333333333333ull) + ((b >> 2) & 0x3333333333333333ull);
+    b = (b + (b >> 4)) & 0x0F0F0F0F0F0F0F0Full;
+    n += (b * 0x0101010101010101ull) >> 56;
+  }
   return n;
 }
 
@@ -62,11 +69,10 @@ inline bool cell_range(double origin, double inv_cell, uint32_t resolution, doub
   // A closed box touching the grid's upper face (qa == R) or lower face (qb == 0) still reaches the
   // boundary cell: the padding makes floor(a) == R - 1 or floor(b) == 0 there.
   if (!(b >= 0) || !(a < r)) return false;  // also NaN
-  // floor() by truncation on values clamped to [-1, R]: no libm call (baseline x86-64 has no roundsd).
-  const double ac = std::max(a, -1.0), bc = std::min(b, r);
-  const int ia = int(ac) - (double(int(ac)) > ac), ib = int(bc) - (double(int(bc)) > bc);
-  first = std::max(ia, 0);
-  last = std::min(ib, int(resolution) - 1);
+  // floor() by truncation (no libm call: baseline x86-64 has no roundsd), on values clamped to [0, R]:
+  // below 0 the first cell is 0 whatever the floor, and b >= 0 here.
+  first = int(std::max(a, 0.0));
+  last = std::min(int(std::min(b, r)), int(resolution) - 1);
   return first <= last;
 }
 
