@@ -91,6 +91,45 @@ void world_box(const Effective& e, const Vec3d& lo, const Vec3d& hi, double grow
   }
 }
 
+// Molenaar 2019 §4.2 (instances through their meshes' coarse occupancy), in grid units: the occupied
+// local cells of one level are a lattice, and q(v) = (Minv·v − origin) / cell maps it affinely, so a
+// cell's box in grid units is its centre q0 + x·dx + y·dy + z·dz ± a half extent E that is the same
+// for every cell of the level (|A|·lc/2, the margin, and the rounding pad below). Each box marks the
+// cells it overlaps (cell i spans [i, i + 1]): the boxes the world-space path built and marked, up to
+// the rounding of either, which the pad covers — relative 10^-9 of every magnitude that enters the
+// sums (double rounding is 2^-52 per operation; a few dozen operations).
+void mark_instance_cells(Grid& g, const Effective& e, const MeshProxies::Proxy& p, const MeshProxies::Level& lv) {
+  const double inv = 1 / g.cell, lc = p.cell * (kLocalRes / lv.r), r = double(g.resolution);
+  double q0[3], step[3][3], E[3];
+  for (int row = 0; row < 3; ++row) {
+    const double b = (e.minv[4 * row + 3] - g.origin[row]) * inv;
+    double c0 = b, ext = 0, mag = 1 + std::fabs(b);
+    for (int c = 0; c < 3; ++c) {
+      const double a = e.minv[4 * row + c] * inv;
+      c0 += a * (p.origin[c] + 0.5 * lc);
+      ext += std::fabs(a) * (0.5 * lc);
+      step[c][row] = a * lc;
+      mag += std::fabs(a) * (std::fabs(p.origin[c]) + p.cell * kLocalRes + lc);
+    }
+    q0[row] = c0;
+    E[row] = ext + e.margin * inv + 1e-9 * (mag + std::fabs(c0) + ext);
+  }
+  int f[3], l[3];
+  for (const uint32_t c : lv.cells) {  // the occupied cells in scan order (z, y, x ascending), not all r^3
+    const double x = double(c & 255), y = double(c >> 8 & 255), z = double(c >> 16);
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) {
+      const double q = q0[k] + x * step[0][k] + y * step[1][k] + z * step[2][k];
+      const double lo = q - E[k], hi = q + E[k];
+      inside &= hi >= 0 && lo < r;  // false for NaN too
+      // Truncation is floor on the values clamped at 0 (below 0 the first cell is 0 whatever the floor).
+      f[k] = inside ? int(std::max(lo, 0.0)) : 0;
+      l[k] = inside ? std::min(int(std::min(hi, r)), int(g.resolution) - 1) : 0;
+    }
+    if (inside) g.mark_cells(f, l);
+  }
+}
+
 }  // namespace
 
 uint32_t choose_resolution(uint64_t triangles) {
@@ -218,14 +257,7 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     for (int k = 0; k < 3; ++k) cells = std::max(cells, (whi[k] - wlo[k]) / cell);
     size_t lv = 0;  // the level whose cells span about two grid cells (8x fewer boxes than one)
     while (lv + 1 < p.levels.size() && double(p.levels[lv].r) < cells / 2) ++lv;
-    const MeshProxies::Level& L = p.levels[lv];
-    const double lc = p.cell * (kLocalRes / L.r);
-    for (const uint32_t c : L.cells) {  // the occupied cells in scan order (z, y, x ascending), not all r^3
-      const uint32_t x = c & 255, y = c >> 8 & 255, z = c >> 16;
-      const Vec3d clo = p.origin + Vec3d{x * lc, y * lc, z * lc}, chi = clo + Vec3d{lc, lc, lc};
-      world_box(e, clo, chi, e.margin, wlo, whi);
-      g.mark_box(wlo, whi);
-    }
+    mark_instance_cells(g, e, p, p.levels[lv]);
   }
   out.set_cells = g.count();
   out.dag = build_dag(g);

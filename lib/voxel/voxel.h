@@ -47,6 +47,8 @@ class Grid {
   uint64_t allocated_bytes() const { return store_.size() * 8; }
   // Every cell overlapping the closed box [lo, hi] (clamped to the grid).
   void mark_box(const Vec3d& lo, const Vec3d& hi);
+  // Every cell (x, y, z) with first[k] <= its k-th index <= last[k] (inside the grid, first <= last).
+  void mark_cells(const int first[3], const int last[3]);
 
  private:
   size_t brick_index(uint32_t bx, uint32_t by, uint32_t bz) const {

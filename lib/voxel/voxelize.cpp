@@ -128,6 +128,10 @@ void Grid::mark_box(const Vec3d& lo, const Vec3d& hi) {
     while (f[k] < l[k] && origin[k] + (f[k] + 1) * cell < lo[k]) ++f[k];
     while (l[k] > f[k] && origin[k] + l[k] * cell > hi[k]) --l[k];
   }
+  mark_cells(f, l);
+}
+
+void Grid::mark_cells(const int f[3], const int l[3]) {
   // Block by block: a block's cells in the box are the AND of three per-axis masks (bit x + 4y + 16z).
   for (int bz = f[2] >> 2; bz <= l[2] >> 2; ++bz) {
     const uint64_t mz = axis_mask(2, f[2], l[2], bz);
