@@ -17,8 +17,8 @@ struct Builder {
   HashIndex leaf_index;  // mask -> index into out.leaves
   HashIndex node_index;  // (level, words...) -> index into out.node_offsets
 
-  uint32_t leaf(uint32_t bx, uint32_t by, uint32_t bz) {
-    const uint64_t m = g.block(bx, by, bz);
+  uint32_t leaf(uint32_t bx, uint32_t by, uint32_t bz) { return leaf_of(g.block(bx, by, bz)); }
+  uint32_t leaf_of(uint64_t m) {
     if (m == 0) return kNone;
     if (m == ~uint64_t(0)) return fmt::kDagFull;
     const auto [index, fresh] =
@@ -30,9 +30,11 @@ struct Builder {
   uint32_t node(int level, uint32_t x, uint32_t y, uint32_t z) {
     if (g.region_empty(x << level, y << level, z << level, 1u << level)) return kNone;  // no brick: skip
     uint32_t refs[8], child_mask = 0, full_mask = 0;
+    uint64_t blocks[8];  // level 1: the eight leaf blocks, one brick lookup
+    if (level == 1) g.block_octet(2 * x, 2 * y, 2 * z, blocks);
     for (uint32_t c = 0; c < 8; ++c) {
       const uint32_t cx = 2 * x + (c & 1), cy = 2 * y + ((c >> 1) & 1), cz = 2 * z + (c >> 2);
-      refs[c] = level == 1 ? leaf(cx, cy, cz) : node(level - 1, cx, cy, cz);
+      refs[c] = level == 1 ? leaf_of(blocks[c]) : node(level - 1, cx, cy, cz);
       if (refs[c] == kNone) continue;
       child_mask |= 1u << c;
       if (refs[c] == fmt::kDagFull) full_mask |= 1u << c;

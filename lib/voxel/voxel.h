@@ -29,6 +29,23 @@ class Grid {
     const uint32_t b = brick_[brick_index(bx, by, bz)];
     return b ? store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)] : 0;
   }
+  // The 2x2x2 blocks at (bx, by, bz) + (c & 1, c >> 1 & 1, c >> 2) in out[c], for even bx, by, bz:
+  // one brick lookup for the eight (a brick's edge is even when the grid has more than one block).
+  void block_octet(uint32_t bx, uint32_t by, uint32_t bz, uint64_t out[8]) const {
+    if (edge_ < 2) {
+      for (uint32_t c = 0; c < 8; ++c) out[c] = block(bx + (c & 1), by + (c >> 1 & 1), bz + (c >> 2));
+      return;
+    }
+    const uint32_t b = brick_[brick_index(bx, by, bz)];
+    if (!b) {
+      for (uint32_t c = 0; c < 8; ++c) out[c] = 0;
+      return;
+    }
+    const uint64_t* p = store_.data() + size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz);
+    const size_t e = edge_, e2 = size_t(edge_) * edge_;
+    out[0] = p[0], out[1] = p[1], out[2] = p[e], out[3] = p[e + 1];
+    out[4] = p[e2], out[5] = p[e2 + 1], out[6] = p[e2 + e], out[7] = p[e2 + e + 1];
+  }
   void set_block(uint32_t bx, uint32_t by, uint32_t bz, uint64_t mask) {
     if (mask || brick_[brick_index(bx, by, bz)]) block_ref(bx, by, bz) = mask;
   }
