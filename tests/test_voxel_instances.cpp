@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -32,7 +33,7 @@ void for_each_cell(const Grid& g, F&& f) {
     for (uint32_t by = 0; by < nb; ++by)
       for (uint32_t bx = 0; bx < nb; ++bx)
         for (uint64_t m = g.block(bx, by, bz); m; m &= m - 1) {
-          const uint32_t b = uint32_t(__builtin_ctzll(m));
+          const uint32_t b = uint32_t(std::countr_zero(m));
           f(4 * bx + (b & 3), 4 * by + (b >> 2 & 3), 4 * bz + (b >> 4));
         }
 }

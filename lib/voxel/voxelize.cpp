@@ -222,7 +222,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   // Schwarz & Seidel 2010 §3.1, by columns of the dominant projection: the plane (a, b) whose third
   // axis w is the normal's largest component. A column (a, b) that passes that plane's bounding-box and
   // edge tests holds the triangle's cells in a short run along w, bounded by the plane test; only that
-  // run (padded by two cells and the rounding below) is tested, with every test the exhaustive loop over
+  // run (padded by one cell and the rounding below) is tested, with every test the exhaustive loop over
   // the bounding box makes, in the same arithmetic, so the cells set are the same. A long thin
   // triangle across a 10^3 box tests about its 10^2 cells instead of 10^3.
   int w = 0;
@@ -255,7 +255,8 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
         const double k = n[a] * pa + n[b] * pb;
         double t0 = (np_lo - k) * inv_nw, t1 = (np_hi - k) * inv_nw;
         if (t0 > t1) std::swap(t0, t1);
-        const double mag = (std::fabs(n[a] * pa) + std::fabs(n[b] * pb) + std::fabs(d1) + std::fabs(d2)) * std::fabs(inv_nw) + wmag;
+        const double mag =
+            (std::fabs(n[a] * pa) + std::fabs(n[b] * pb) + std::fabs(d1) + std::fabs(d2)) * std::fabs(inv_nw) + wmag;
         const double slack = 64 * std::numeric_limits<double>::epsilon() * mag;
         double q0 = (t0 - slack - base_w) * inv_cell - 1, q1 = (t1 + slack - base_w) * inv_cell;
         if (!(q0 >= w0)) q0 = w0;  // also NaN: the whole range
