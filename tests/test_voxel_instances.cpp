@@ -38,6 +38,23 @@ void for_each_cell(const Grid& g, F&& f) {
         }
 }
 
+// Every cell a mesh's triangles touch through an instance's double transform, with no margin.
+void touch_mesh(Grid& g, const Instance& in, const Mesh& m) {
+  const auto world = [&](size_t k) { return in.transform.apply(to_d(m.positions[m.indices[k]])); };
+  for (size_t k = 0; k + 2 < m.indices.size(); k += 3) voxel::voxelize_triangle(g, world(k), world(k + 1), world(k + 2), 0.0);
+}
+
+// Marks in `out` every cell within `reach` cells (Chebyshev) of one set in `src`.
+void dilate_into(Grid& out, const Grid& src, int reach) {
+  const int last = int(src.resolution) - 1;
+  for_each_cell(src, [&](uint32_t x, uint32_t y, uint32_t z) {
+    const int c[3] = {int(x), int(y), int(z)};
+    int f[3], l[3];
+    for (int k = 0; k < 3; ++k) f[k] = std::max(c[k] - reach, 0), l[k] = std::min(c[k] + reach, last);
+    out.mark_cells(f, l);
+  });
+}
+
 struct Totals {
   uint64_t points = 0, instances = 0, touched = 0, set = 0, missing = 0, far_out = 0;
 };
@@ -66,24 +83,9 @@ Totals check_scene(const std::string& path, uint64_t points_wanted) {
     const Grid got = voxel::decode_dag(px.grid, view);
     const Vec3d origin{px.grid.origin[0], px.grid.origin[1], px.grid.origin[2]};
     Grid touched(origin, px.grid.cell, px.grid.resolution), near(origin, px.grid.cell, px.grid.resolution);
-    for (const uint32_t i : bp.instances) {
-      const Instance& in = scene.instances[i];
-      const Mesh& m = scene.meshes[in.mesh];
-      for (size_t k = 0; k + 2 < m.indices.size(); k += 3)
-        voxel::voxelize_triangle(touched, in.transform.apply(to_d(m.positions[m.indices[k]])),
-                                 in.transform.apply(to_d(m.positions[m.indices[k + 1]])),
-                                 in.transform.apply(to_d(m.positions[m.indices[k + 2]])), 0.0);
-    }
+    for (const uint32_t i : bp.instances) touch_mesh(touched, scene.instances[i], scene.meshes[scene.instances[i].mesh]);
     Grid pieces(origin, px.grid.cell, px.grid.resolution);  // a piece's cells are set where its triangles are
-    for (const uint32_t k : bp.pieces) {
-      const UniquePiece& pc = plan.pieces[k];
-      const Instance& in = scene.instances[pc.instance];
-      for (size_t j = 0; j + 2 < pc.mesh.indices.size(); j += 3)
-        voxel::voxelize_triangle(pieces, in.transform.apply(to_d(pc.mesh.positions[pc.mesh.indices[j]])),
-                                 in.transform.apply(to_d(pc.mesh.positions[pc.mesh.indices[j + 1]])),
-                                 in.transform.apply(to_d(pc.mesh.positions[pc.mesh.indices[j + 2]])), 0.0);
-    }
-    const int last = int(px.grid.resolution) - 1;
+    for (const uint32_t k : bp.pieces) touch_mesh(pieces, scene.instances[plan.pieces[k].instance], plan.pieces[k].mesh);
     for_each_cell(touched, [&](uint32_t x, uint32_t y, uint32_t z) {
       ++t.touched;
       if (!got.get(x, y, z)) {
@@ -92,17 +94,9 @@ Totals check_scene(const std::string& path, uint64_t points_wanted) {
                         << ") touched by an instance's triangle is not set";
         ++t.missing;
       }
-      const int c[3] = {int(x), int(y), int(z)};
-      int f[3], l[3];
-      for (int k = 0; k < 3; ++k) f[k] = std::max(c[k] - kReach, 0), l[k] = std::min(c[k] + kReach, last);
-      near.mark_cells(f, l);
     });
-    for_each_cell(pieces, [&](uint32_t x, uint32_t y, uint32_t z) {  // within their margin: one cell
-      const int c[3] = {int(x), int(y), int(z)};
-      int f[3], l[3];
-      for (int k = 0; k < 3; ++k) f[k] = std::max(c[k] - 1, 0), l[k] = std::min(c[k] + 1, last);
-      near.mark_cells(f, l);
-    });
+    dilate_into(near, touched, kReach);
+    dilate_into(near, pieces, 1);  // pieces: within their margin, one cell
     for_each_cell(got, [&](uint32_t x, uint32_t y, uint32_t z) {
       ++t.set;
       if (!near.get(x, y, z)) {
