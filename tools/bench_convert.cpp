@@ -37,6 +37,7 @@
 #include "core/utf8.h"
 #include "core/progress.h"
 #include "package/convert.h"
+#include "malloc_policy.h"
 #include "mesh/prepare.h"
 #include "oracle/embree_oracle.h"
 #include "package/package.h"
@@ -252,6 +253,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"ratio_embree_over_chunks", embree_s / c.chunks_s},
                 {"peak_rss_mib_convert", rss_convert},
                 {"peak_rss_mib", rss_all},
+                {"malloc_huge_pages", rtp::tools::huge_page_state()},
                 {"threads", threads},
                 {"hardware_threads", hw},
                 {"reps", cfg.reps},
@@ -290,6 +292,8 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   std::fprintf(o, "\n  Embree / convert %.3f, Embree / convert without import %.3f, Embree / chunks %.3f\n",
                embree_s / c.total(), embree_s / c.without_import(), embree_s / c.chunks_s);
   std::fprintf(o, "  peak RSS %.1f MiB after the convert runs, %.1f MiB after the Embree builds\n", rss_convert, rss_all);
+  std::fprintf(o, "  malloc huge pages %s (both the convert and Embree run in this process)\n",
+               rtp::tools::huge_page_state().c_str());
   return 0;
 }
 

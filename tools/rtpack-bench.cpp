@@ -378,7 +378,7 @@ int run(Config& cfg) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  rtp::tools::keep_freed_memory();  // before the first large allocation (malloc_policy.h)
+  rtp::tools::configure_malloc(argv);  // first: may re-execute with huge pages (malloc_policy.h)
   CLI::App app{"rtpack-bench: rtpack's in-core tracer vs Embree 3 (ROBUST) on the same rays, same run"};
   rtp::tools::add_version_flag(app, "rtpack-bench");
   Config cfg;

@@ -29,7 +29,7 @@ std::string human(double bytes) { return rtp::human_bytes(bytes); }
 }  // namespace
 
 int main(int argc, char** argv) {
-  rtp::tools::keep_freed_memory();  // before the first large allocation (malloc_policy.h)
+  rtp::tools::configure_malloc(argv);  // first: may re-execute with huge pages (malloc_policy.h)
   CLI::App app{"rtpack-convert: prepare a glTF scene for out-of-core ray tracing"};
   rtp::tools::add_version_flag(app, "rtpack-convert");
   std::string input, output, build = "collapse", chunk_by = "instanced";
@@ -240,6 +240,8 @@ int main(int argc, char** argv) {
       for (const auto& [name, c] : stages)
         std::fprintf(stderr, "stage %-16s %8.3f s  peak RSS %7.1f MiB\n", name, c.seconds, c.peak_rss_mib);
       std::fprintf(stderr, "  of chunks: voxelize %.3f s (summed over threads)\n", rep.voxelize_seconds);
+      std::fprintf(stderr, "memory: malloc huge pages %s; %.1f MiB of anonymous huge pages resident at the end\n",
+                   rtp::tools::huge_page_state().c_str(), rtp::tools::anon_huge_pages_mib());
       std::fprintf(stderr, "settings: %d threads, W=%d, B=%d, zstd level %d, %s build, chunk target %llu triangles\n",
                    int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), width, leaf_width,
                    zstd_level, build.c_str(), (unsigned long long)plan.chunk_target);
