@@ -29,9 +29,9 @@ class PackageWriter {
   // and deterministic (single-threaded zstd); add_packed() appends in call order.
   // raw_literals: zstd stores literals as they are, without Huffman coding; min_match > 0: zstd's
   // shortest match (3..7) instead of the level's own (see ConvertOptions).
-  static std::vector<uint8_t> compress(const void* data, size_t size, int level, fmt::Compression& used,
-                                       bool raw_literals = false, int min_match = 0);
-  const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
+  static AlignedBytes compress(const void* data, size_t size, int level, fmt::Compression& used,
+                               bool raw_literals = false, int min_match = 0);
+  const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const AlignedBytes& stored,
                                   fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
   // `header`), flushes, and puts the file at `path` (atomically replacing a previous one).

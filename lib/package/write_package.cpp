@@ -71,7 +71,7 @@ struct Job {
   uint64_t id;
   AlignedBytes raw;  // resident chunks; a geometry chunk is sealed (compressed) at once, see seal()
   uint64_t raw_size = 0;
-  std::vector<uint8_t> stored{};
+  AlignedBytes stored{};
   fmt::Compression comp{};
   uint64_t node_bytes = 0, block_bytes = 0, triangles = 0;
   AlignedBytes attr_raw{};  // the chunk's attribute stream (SPEC §4.4); empty when it has none
@@ -235,12 +235,14 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
   add(ChunkKind::kTopLevelBvh, tc);
 
   // In parallel: 10^6 records one by one were 5 % of a forest-1m convert's samples, on one thread.
-  std::vector<fmt::InstanceRecord> recs(scene.instances.size());
+  // Aligned storage: not zero-filled first, and a large one's pages go on (core/aligned.h) to the
+  // chunk's zstd scratch when it is freed.
+  std::vector<fmt::InstanceRecord, AlignedAllocator<fmt::InstanceRecord>> recs(scene.instances.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, recs.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) recs[i] = make_instance_record(scene.instances[i]);
   });
   ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
-  ic.add(SectionType::kInstances, recs);
+  ic.add_raw(SectionType::kInstances, recs.data(), recs.size(), sizeof(fmt::InstanceRecord));
   add(ChunkKind::kInstances, ic);
 
   std::vector<fmt::MeshInfo> infos;
@@ -351,7 +353,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   tbb::task_group beside;
   beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
-  struct Packed { Job job; std::vector<uint8_t> attr_stored; fmt::Compression attr_comp; voxel::PointProxy proxy; };
+  struct Packed { Job job; AlignedBytes attr_stored; fmt::Compression attr_comp; voxel::PointProxy proxy; };
   const SealOptions seal_opt{o.zstd_level, o.zstd_raw_literals, o.zstd_leaf_min_match};
   uint64_t header_flags = 0;
   auto record = [&](const Job& job, const fmt::TocEntry& e) {

@@ -20,14 +20,17 @@ PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(pat
 PackageWriter::~PackageWriter() = default;
 
 void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { out_.write_at(offset, data, size); }
-std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used,
-                                             bool raw_literals, int min_match) {
+AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used, bool raw_literals,
+                                    int min_match) {
   used = fmt::Compression::kNone;
   if (level > 0 && size > 0) {
-    // A per-thread scratch of compressBound bytes, reused: a fresh zero-filled one per chunk was faulted
-    // in and cleared every time (2 % of a convert in memset alone); the frame is copied out at its size.
-    thread_local std::vector<uint8_t> scratch;
-    if (scratch.size() < ZSTD_compressBound(size)) scratch.resize(ZSTD_compressBound(size));
+    // A per-thread scratch of compressBound bytes, reused, never zero-filled (AlignedBytes): a fresh
+    // zero-filled one per chunk was faulted in and cleared every time (2 % of a convert in memset alone).
+    thread_local AlignedBytes scratch;
+    if (scratch.size() < ZSTD_compressBound(size)) {
+      scratch = AlignedBytes();  // not resize: that would copy the old bytes over
+      scratch.resize(ZSTD_compressBound(size));
+    }
     // One context per thread, reused: a fresh one per chunk allocated and cleared its tables every time.
     thread_local std::unique_ptr<ZSTD_CCtx, size_t (*)(ZSTD_CCtx*)> ctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
     if (!ctx) throw std::bad_alloc();
@@ -46,14 +49,22 @@ std::vector<uint8_t> PackageWriter::compress(const void* data, size_t size, int 
     if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));
     if (n < size) {  // stored raw when compression does not help
       used = fmt::Compression::kZstd;
-      return std::vector<uint8_t>(scratch.begin(), scratch.begin() + std::ptrdiff_t(n));
+      if (n >= kHugeThreshold) {
+        // A large frame leaves in the scratch itself (its untouched tail is address space only), not
+        // copied into a fresh buffer: the 10^6-record instance table's 69 MB frame was both.
+        AlignedBytes out = std::move(scratch);
+        scratch = AlignedBytes();
+        out.resize(n);
+        return out;
+      }
+      return AlignedBytes(scratch.begin(), scratch.begin() + std::ptrdiff_t(n));
     }
   }
   const uint8_t* p = static_cast<const uint8_t*>(data);
-  return std::vector<uint8_t>(p, p + size);
+  return AlignedBytes(p, p + size);
 }
 
-const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id, const std::vector<uint8_t>& stored,
+const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id, const AlignedBytes& stored,
                                                fmt::Compression compression, uint64_t raw_size) {
   fmt::TocEntry e{};
   e.kind = uint32_t(kind);
@@ -71,7 +82,7 @@ const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id,
 
 const fmt::TocEntry& PackageWriter::add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size) {
   fmt::Compression c;
-  const std::vector<uint8_t> stored = compress(data, size, level_, c);
+  const AlignedBytes stored = compress(data, size, level_, c);
   return add_packed(kind, id, stored, c, size);
 }
 
