@@ -76,6 +76,45 @@ double step(const Scene& s, int bits) {
   return std::max({e.x, e.y, e.z}) / double((1 << bits) - 1);
 }
 
+// A .glb's BIN chunk reaches tinygltf by an internal buffer name (lib/scene/load.cpp, no copies); a
+// second buffer whose file has exactly that name must still be read from its file, and the BIN chunk
+// (longer than its byteLength by the chunk padding) still be buffer 0.
+TEST(ImportGlb, BinChunkAndABufferFileNamedLikeItsInternalNameBothLoad) {
+  const fs::path dir = temp_dir("glb_bin_name");
+  GltfBuilder b = one_triangle();  // buffer 0: (0,0,0) (1,0,0) (0,1,0), 42 bytes, chunk padded to 44
+  const std::vector<float> far_tri = {5, 5, 5, 7, 5, 5, 5, 7, 5};
+  std::ofstream(dir / "rtpack-glb-bin-chunk", std::ios::binary)
+      .write(reinterpret_cast<const char*>(far_tri.data()), std::streamsize(far_tri.size() * sizeof(float)));
+  b.j["bufferViews"].push_back({{"buffer", 1}, {"byteOffset", 0}, {"byteLength", 36}});
+  b.j["accessors"].push_back({{"bufferView", int(b.j["bufferViews"].size()) - 1}, {"componentType", 5126}, {"type", "VEC3"}, {"count", 3}});
+  b.j["meshes"].push_back({{"primitives", {{{"attributes", {{"POSITION", int(b.j["accessors"].size()) - 1}}}}}}});
+  b.set_scene({0, b.add_node({{"mesh", 1}})});
+  std::string glb = b.glb_bytes();  // its JSON lists buffer 0 only: add buffer 1, re-assemble
+  nlohmann::json d = b.j;
+  d["buffers"] = {{{"byteLength", b.bin.size()}}, {{"byteLength", 36}, {"uri", "rtpack-glb-bin-chunk"}}};
+  std::string js = d.dump();
+  while (js.size() % 4) js.push_back(' ');
+  std::vector<uint8_t> bin = b.bin;
+  while (bin.size() % 4) bin.push_back(0);
+  ASSERT_GT(bin.size(), b.bin.size()) << "the test wants a BIN chunk longer than its buffer";
+  glb.clear();
+  auto put = [&](uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+  put(0x46546C67), put(2), put(uint32_t(12 + 8 + js.size() + 8 + bin.size()));
+  put(uint32_t(js.size())), put(0x4E4F534A);
+  glb += js;
+  put(uint32_t(bin.size())), put(0x004E4942);
+  glb.append(reinterpret_cast<const char*>(bin.data()), bin.size());
+  std::ofstream(dir / "two.glb", std::ios::binary) << glb;
+
+  const Scene s = import_gltf((dir / "two.glb").string(), {});
+  const std::vector<Tri> got = world_triangles(s);
+  const std::vector<Tri> want = {Tri{Vec3d{0, 0, 0}, Vec3d{1, 0, 0}, Vec3d{0, 1, 0}}, Tri{Vec3d{5, 5, 5}, Vec3d{7, 5, 5}, Vec3d{5, 7, 5}}};
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(unmatched(want, got, 0.0), 0u) << "a buffer was read from the wrong place";
+  EXPECT_EQ(s.input.buffer_files, 1u);
+  fs::remove_all(dir);
+}
+
 TEST(ImportReal, LanternFloatQuantizedDracoAgree) {
   const fs::path dir = source_dir() / "samples/khronos/Lantern";
   const Scene f = import_gltf((dir / "glTF/Lantern.gltf").string());

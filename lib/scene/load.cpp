@@ -58,6 +58,7 @@ const std::set<std::string>& known_extensions() {
 struct Approved {
   std::string canonical;
   uint64_t size;
+  std::vector<unsigned char>* memory = nullptr;  // the .glb's BIN chunk, handed over instead of a file
 };
 using ApprovedMap = std::map<std::string, Approved>;
 bool fs_exists(const std::string& p, void* user) { return static_cast<const ApprovedMap*>(user)->count(p) > 0; }
@@ -68,6 +69,14 @@ bool fs_read(std::vector<unsigned char>* out, std::string* err, const std::strin
   if (it == approved.end()) {
     if (err) *err += "refusing to read '" + p + "' (not a checked buffer path)\n";
     return false;
+  }
+  if (it->second.memory) {  // once: tinygltf swaps it into the buffer, no copy
+    out->swap(*it->second.memory);
+    if (out->size() != it->second.size) {
+      if (err) *err += "the .glb BIN chunk was already handed over\n";
+      return false;
+    }
+    return true;
   }
   try {
     uint64_t size = 0;
@@ -169,7 +178,8 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
 
   // Container: .glb (by magic, whatever the extension) or JSON text. A .glb's header and chunk
   // headers are checked against the file size before any chunk body is read.
-  std::string json_text, bin_data;
+  std::string json_text;
+  std::vector<unsigned char> bin_data;
   bool has_bin = false;
   char head[12] = {};
   read_exact(in.fd, 0, head, size_t(std::min<uint64_t>(file_size, 12)), path);
@@ -192,11 +202,14 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
         fail_invalid("truncated file: chunk " + std::to_string(chunk) + " (" + std::to_string(clen) + " bytes at byte " +
                      std::to_string(off + 8) + ") extends past the end of the data (" + std::to_string(length) + " bytes)");
       if (chunk == 0 && ctype != kChunkJson) fail_invalid(".glb: the first chunk is not JSON");
-      std::string* dst = chunk == 0 ? &json_text : (chunk == 1 && ctype == kChunkBin) ? &bin_data : nullptr;
-      if (dst) {  // only the JSON and BIN chunks are read; others are skipped
-        dst->resize(size_t(clen));
-        read_exact(in.fd, off + 8, dst->data(), dst->size(), path);
-        has_bin |= dst == &bin_data;
+      // Only the JSON and BIN chunks are read; others are skipped.
+      if (chunk == 0) {
+        json_text.resize(size_t(clen));
+        read_exact(in.fd, off + 8, json_text.data(), json_text.size(), path);
+      } else if (chunk == 1 && ctype == kChunkBin) {
+        bin_data.resize(size_t(clen));
+        read_exact(in.fd, off + 8, bin_data.data(), bin_data.size(), path);
+        has_bin = true;
       }
       off += 8 + ((clen + 3) & ~uint64_t(3));
       ++chunk;
@@ -211,7 +224,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     json_text.resize(size_t(file_size));
     read_exact(in.fd, 0, json_text.data(), json_text.size(), path);
   }
-  const char* bin = has_bin ? bin_data.data() : nullptr;
+  const unsigned char* bin = has_bin ? bin_data.data() : nullptr;
   const size_t bin_size = bin_data.size();
 
   jsonc::check_depth(json_text, "");
@@ -250,6 +263,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     if (!ec) roots.push_back(c);
   }
   ApprovedMap approved;
+  uint64_t bin_buffer_bytes = UINT64_MAX;  // byteLength of buffer 0 when it is the .glb BIN chunk
   if (j.contains("buffers")) {
     if (!j["buffers"].is_array()) fail_invalid("/buffers: not an array");
     for (size_t i = 0; i < j["buffers"].size(); ++i) {
@@ -271,6 +285,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
         } else if (is_glb && i == 0) {
           if (!bin) fail_invalid(ptr + ": refers to the .glb BIN chunk, but the file has none");
           real = int64_t(bin_size);
+          bin_buffer_bytes = declared;
         } else {
           fail_invalid(ptr + ": no uri (only the first buffer of a .glb may omit it)");
         }
@@ -333,6 +348,20 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     patched["buffers"][i]["uri"] = "data:application/octet-stream;base64,AA==";
     patched["buffers"][i]["byteLength"] = 1;
   }
+  // The .glb's BIN chunk reaches tinygltf as buffer 0's "file", moved in by fs_read: re-assembled into
+  // the container it was copied twice (into the container, then into the buffer), 3x the file in memory
+  // at once. Only when no other buffer already resolves to that name (then the container holds it).
+  bool bin_by_name = false;
+  if (bin && bin_buffer_bytes != UINT64_MAX) {
+    const char* kBinUri = "rtpack-glb-bin-chunk";
+    const std::string key = join_path(doc.base_dir, kBinUri);
+    if (!approved.count(key)) {
+      bin_data.resize(size_t(bin_buffer_bytes));  // the chunk's padding is not the buffer's (checked: >= byteLength)
+      approved[key] = Approved{std::string(), bin_buffer_bytes, &bin_data};
+      patched["buffers"][0]["uri"] = kBinUri;
+      bin_by_name = true;
+    }
+  }
 
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(no_image_loader, nullptr);
@@ -349,10 +378,10 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     put(uint32_t(jt.size()));
     put(kChunkJson);
     glb += jt;
-    if (bin) {
+    if (bin && !bin_by_name) {
       put(uint32_t((bin_size + 3) & ~size_t(3)));
       put(kChunkBin);
-      glb.append(bin, bin_size);
+      glb.append(reinterpret_cast<const char*>(bin), bin_size);
       while (glb.size() % 4) glb.push_back('\0');
     }
     if (glb.size() >= k4GiB) fail_invalid("re-assembled .glb would exceed 4 GiB");
