@@ -31,7 +31,7 @@
 
 namespace rtp::tools {
 
-// What configure_malloc did, for -v: "on (...)" or "off (why)".
+// What configure_malloc did, for -v: "on (...)", "off (why)" or "as GLIBC_TUNABLES sets it (...)".
 inline std::string& huge_page_state() {
   static std::string s = "off (not configured)";
   return s;
@@ -55,7 +55,10 @@ inline void configure_malloc([[maybe_unused]] char** argv) {
   const char* tunables = std::getenv("GLIBC_TUNABLES");
   if (tunables && std::strstr(tunables, "glibc.malloc.hugetlb=")) {
     const char* v = std::strstr(tunables, "glibc.malloc.hugetlb=") + std::strlen("glibc.malloc.hugetlb=");
-    state = *v == '1' ? "on (glibc.malloc.hugetlb=1)" : "off (GLIBC_TUNABLES sets glibc.malloc.hugetlb=" + std::string(1, *v) + ")";
+    const std::string value(v, std::strcspn(v, ":"));
+    state = value == "1"   ? "on (glibc.malloc.hugetlb=1)"
+            : value == "0" ? "off (GLIBC_TUNABLES sets glibc.malloc.hugetlb=0)"
+                           : "as GLIBC_TUNABLES sets it (glibc.malloc.hugetlb=" + value + ")";
     return;
   }
 #if defined(__SANITIZE_ADDRESS__) || defined(RTP_SANITIZED_BUILD)
