@@ -14,6 +14,7 @@ namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CM
 
 namespace fs = std::filesystem;
 
+#ifndef RTP_SANITIZED_BUILD  // the sanitizer build expects "off" whatever the kernel does
 std::string kernel_thp_mode() {
   std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
   std::string line;
@@ -21,6 +22,7 @@ std::string kernel_thp_mode() {
   const size_t a = line.find('['), b = line.find(']');
   return a != std::string::npos && b != std::string::npos && b > a ? line.substr(a + 1, b - a - 1) : std::string();
 }
+#endif
 
 // The -v line "memory: malloc huge pages STATE; X MiB of anonymous huge pages resident at the end".
 struct MemoryLine {
