@@ -8,21 +8,12 @@
 
 #include "gltf_builder.h"
 #include "tool_run.h"
+#include "tools/malloc_policy.h"  // thp_mode(): the kernel's mode, read as the tool reads it
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
-
-#ifndef RTP_SANITIZED_BUILD  // the sanitizer build expects "off" whatever the kernel does
-std::string kernel_thp_mode() {
-  std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
-  std::string line;
-  std::getline(f, line);
-  const size_t a = line.find('['), b = line.find(']');
-  return a != std::string::npos && b != std::string::npos && b > a ? line.substr(a + 1, b - a - 1) : std::string();
-}
-#endif
 
 // The -v line "memory: malloc huge pages STATE; X MiB of anonymous huge pages resident at the end".
 struct MemoryLine {
@@ -61,7 +52,7 @@ TEST_F(HugePages, ConvertHeapsUseThemAndTheTunableTurnsThemOff) {
 #ifdef RTP_SANITIZED_BUILD
   EXPECT_EQ(m.state, "off (sanitizer build: its own allocator)") << on.err;
 #else
-  const std::string mode = kernel_thp_mode();
+  const std::string mode = rtp::tools::thp_mode();
   if (mode != "madvise") {
     EXPECT_EQ(m.state, "off (kernel THP mode '" + (mode.empty() ? std::string("unknown") : mode) + "')") << on.err;
     GTEST_SKIP() << "kernel THP mode is '" << mode << "', not madvise: the tool leaves malloc as it is";
