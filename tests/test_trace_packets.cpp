@@ -192,6 +192,72 @@ TEST(TracePackets, TopLevelOfOneLeafEqualsSingleRays) {
   }
 }
 
+// Instances whose L^-1 is a signed permutation (a half turn about y as BoomBox's and Lantern's nodes, a
+// quarter turn, a mirror, an axis cycle, a translation) move a packet's rays by permuting the world rays
+// (move_ray_by_axes), lane by lane falling back to the double transform where a component of org - T or
+// dir is zero. Packets must give the single rays' answers and the general transform's (a view without
+// AxisMoves) bit for bit, as one instance under a one-leaf top level and as several under a tree.
+TEST(TracePackets, SignedPermutationInstancesMovePacketsByTheirAxes) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  const double turns[][9] = {{-1, 0, 0, 0, 1, 0, 0, 0, -1},   // half turn about y
+                             {0, -1, 0, 1, 0, 0, 0, 0, 1},    // quarter turn about z
+                             {-1, 0, 0, 0, 1, 0, 0, 0, 1},    // mirror
+                             {0, 0, 1, 1, 0, 0, 0, 1, 0},     // axis cycle
+                             {1, 0, 0, 0, 1, 0, 0, 0, 1}};    // translation only
+  for (const bool one : {true, false}) {
+    Scene s;
+    s.meshes.push_back(make_icosphere(3));
+    s.meshes.push_back(make_grid(8, 8));
+    for (int k = 0; k < (one ? 1 : 10); ++k) {
+      Instance in;
+      in.mesh = uint32_t(k % 2);
+      const double* m = turns[k % 5];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) in.transform(r, c) = m[3 * r + c] * (k == 9 ? 0.25 : 1.0);
+      // Instance 9's scale 0.25 makes L^-1 = 4 x a signed permutation: not one, the general path.
+      in.transform(0, 3) = 2.5 * (k % 4), in.transform(1, 3) = 2.5 * (k / 4), in.transform(2, 3) = -0.5 * (k % 3);
+      in.mirrored = k % 5 == 2;
+      s.instances.push_back(in);
+    }
+    s.bounds = Aabb{};
+    for (const Instance& in : s.instances)
+      for (uint32_t v : s.meshes[in.mesh].indices) s.bounds.grow(in.transform.apply(to_d(s.meshes[in.mesh].positions[v])));
+    const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(s);
+    const SceneView<8, 8> view = bvh.view();
+    ASSERT_NE(view.moves, nullptr);
+    ASSERT_EQ(view.moves[0].kind, AxisMove::kAxes);
+    ASSERT_EQ(fmt::ChildRef::is_leaf(view.top_root), one);
+    RayGenOptions gen;
+    gen.seed = 12;
+    gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(view, r, h, n, {}); };
+    std::vector<fmt::Ray> rays = generate_rays(s, RayKind::kPrimary, 4096, gen);
+    // Every 5th ray's origin on a translation plane of instance 0 (org - T has a zero: that lane alone
+    // takes the general transform inside its packet).
+    for (size_t i = 0; i < rays.size(); i += 5) rays[i].org[i % 3] = float(s.instances[0].transform(int(i % 3), 3));
+    SceneView<8, 8> general = view;
+    general.moves = nullptr;
+    const Answers reference = run<8, 8>(general, rays, {Isa::kScalar, TraversalOrder::kOctantStack, 0});
+    size_t on_axes = 0;
+    for (const fmt::Hit& h : reference.hits)
+      on_axes += h.instance != fmt::Hit::kNone && view.moves[h.instance].kind == AxisMove::kAxes;
+    EXPECT_GT(on_axes, rays.size() / 8) << "closest hits on instances moved by their axes";
+    for (Isa isa : simd_isas())
+      for (uint32_t p : {4u, 8u, 16u}) {
+        const std::string path = std::string(one ? "one instance" : "ten instances") + " " + isa_name(isa) +
+                                 " packets of " + std::to_string(p);
+        const Answers got = run<8, 8>(view, rays, {isa, TraversalOrder::kOctantStack, p});
+        int bad = 0;
+        for (size_t i = 0; i < rays.size(); ++i)
+          if ((!same(got.hits[i], reference.hits[i]) || got.occluded[i] != reference.occluded[i]) && ++bad <= 5)
+            ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << reference.hits[i].t
+                          << ", instance " << got.hits[i].instance << " vs " << reference.hits[i].instance;
+        EXPECT_EQ(bad, 0) << path;
+        EXPECT_GE(double(got.closest.packet_rays), 0.9 * double(rays.size())) << path;
+      }
+    expect_packets_equal_single<8, 8>(view, rays, one ? "one axis-moved instance" : "axis-moved instances", 0.1, 0.9);
+  }
+}
+
 // Packets of 16 whose rays point into different octants, or carry NaN, tnear > tfar, zero and
 // axis-parallel directions: the first valid ray's octant forms the packet, the others go alone.
 TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {

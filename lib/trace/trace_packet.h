@@ -32,8 +32,9 @@ struct PacketLanes {
 };
 
 // One instance's mesh for the rays of `mask`, given in its local space (org/dir/box per lane).
-template <class K, int P, int W, int B, class Sink>
-inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, float (*org)[3], float (*dir)[3],
+// org/dir: rows of N >= 3 floats per lane (x, y, z first).
+template <class K, int P, int W, int B, class Sink, int N>
+inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, float (*org)[N], float (*dir)[N],
                         const detail::BoxRay* box, PacketLanes<P, Sink>& L, PacketCounters& pc,
                         const PacketRays<P>* ready = nullptr) {
   constexpr TraversalOrder kOct = TraversalOrder::kOctantStack;
@@ -106,10 +107,20 @@ inline Walk packet_mesh(const SceneView<W, B>& s, uint32_t id, uint32_t mask, fl
 template <class K, int P, int W, int B, class Sink>
 inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P, Sink>& L, PacketCounters& pc) {
   constexpr TraversalOrder kOct = TraversalOrder::kOctantStack;
+  // The world rays' origins and directions as packet_mesh reads them, copied only for a mesh walked in
+  // world space (the view's direct instance, or an instance that moves no ray).
   float world_org[P][3], world_dir[P][3];
-  for (int i = 0; i < P; ++i)
-    for (int a = 0; a < 3; ++a) world_org[i][a] = L.ray[i].org[a], world_dir[i][a] = L.ray[i].dir[a];
-  if (s.direct != kNoDirectInstance) return packet_mesh<K>(s, s.direct, mask, world_org, world_dir, L.world, L, pc);
+  bool world_rows = false;
+  auto copy_world_rows = [&] {
+    if (world_rows) return;
+    for (int i = 0; i < P; ++i)
+      for (int a = 0; a < 3; ++a) world_org[i][a] = L.ray[i].org[a], world_dir[i][a] = L.ray[i].dir[a];
+    world_rows = true;
+  };
+  if (s.direct != kNoDirectInstance) {
+    copy_world_rows();
+    return packet_mesh<K>(s, s.direct, mask, world_org, world_dir, L.world, L, pc);
+  }
   // The world rays' packet, made when first needed: a top level that is one leaf (a scene of one moved
   // instance, e.g. a glTF root node with a transform) tests no node, and a moved instance makes its own.
   PacketRays<P> pr;
@@ -129,16 +140,32 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
     for (uint32_t k = first; k < first + count && (rays & L.live); ++k) {
       const uint32_t id = s.top_instances[k];
       if (moves_no_ray(s.instances[id])) {  // the world rays and their packet as they are
+        copy_world_rows();
         if (packet_mesh<K>(s, id, rays & L.live, world_org, world_dir, L.world, L, pc, world_packet()) == Walk::kOverflow)
           status = Walk::kOverflow;
         continue;
       }
-      float org[P][3], dir[P][3];
+      // One float more per lane: move_ray_by_axes stores four floats at a time.
+      alignas(16) float org[P][4], dir[P][4];
       detail::BoxRay box[P];
       uint32_t in = 0;
       const InstanceMove move(s.instances[id]);  // transform_ray's operands, once for the packet
+      // An instance whose L^-1 is a signed permutation (BoomBox's and Lantern's nodes) moves each lane by
+      // permuting its world ray, as instance_leaf_one does for single rays (issue 11: the packet path ran
+      // the double transform and a division per lane). Same bits as the general transform (scene_view.h);
+      // a lane with a zero component takes the general path.
+      const bool by_axes = s.moves && s.moves[id].kind == AxisMove::kAxes;
       for (uint32_t m = rays & L.live; m; m &= m - 1) {
         const int lane = lowest_bit(m);
+        if (by_axes) {
+          const AxisMoveResult r =
+              move_ray_by_axes(s.instances[id], s.moves[id], L.ray[lane], L.world[lane], org[lane], dir[lane], &box[lane]);
+          if (r == AxisMoveResult::kSkip) continue;
+          if (r == AxisMoveResult::kMoved) {
+            in |= 1u << lane;
+            continue;
+          }
+        }
         if (!move.apply(L.ray[lane].org, L.ray[lane].dir, org[lane], dir[lane])) continue;
         setup_box_ray(org[lane], dir[lane], L.ray[lane].tnear, &box[lane]);
         in |= 1u << lane;
