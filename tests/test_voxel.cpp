@@ -265,6 +265,64 @@ TEST(VoxelVoxelize, ConservativeEqualsExactSeparatingAxisReference) {
 
 // TESTING.md item 8: a triangle exactly on a grid plane sets the cells on both sides (a ray along
 // the plane hits it from either); one inside a cell sets only that cell.
+// The AVX2 rows of a small box (voxelize_rows_avx2.cpp) set exactly the cells the scalar loop sets:
+// float vertices (rounding everywhere), boxes of one to five cells a side anywhere in grids of
+// 16^3 and 32^3 with float origins and cells, margins from 0 to a quarter cell, and NaN-free
+// slivers, grid by grid, cell by cell.
+TEST(VoxelVoxelize, Avx2RowsSetTheScalarCells) {
+  if (detect_isa() == Isa::kScalar) GTEST_SKIP() << "this CPU has no AVX2: only the scalar loop runs here";
+  Rng rng(7);
+  uint64_t triangles = 0, small_boxes = 0, cells = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const uint32_t R = 16u << rng.below(2);
+    const float cell = float(rng.range(0.01, 3.0));
+    const Vec3d origin{float(rng.range(-50, 50)), float(rng.range(-50, 50)), float(rng.range(-50, 50))};
+    const Grid shape(origin, cell, R);
+    // A region of 1..5 cells a side, vertices as floats inside it (sometimes on its faces).
+    int size[3];
+    Vec3d base;
+    for (int k = 0; k < 3; ++k) {
+      size[k] = 1 + int(rng.below(5));
+      base[k] = origin[k] + double(rng.below(R - size[k] + 1)) * cell;
+    }
+    Vec3d v[3];
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) {
+        const double u = rng.below(8) == 0 ? double(rng.below(2)) : rng.uniform();
+        v[i][k] = float(base[k] + u * size[k] * cell);
+      }
+    if (rng.below(6) == 0) v[2] = v[0] + (v[1] - v[0]) * rng.uniform() + Vec3d{1e-6, -1e-6, 1e-6};  // sliver
+    // A vertex on a grid corner with no margin: plane and edge values of exactly zero at cell corners,
+    // where a comparison's direction or a sum's grouping decides the cell.
+    const bool corner = rng.below(3) == 0;
+    if (corner)
+      for (int k = 0; k < 3; ++k) v[0][k] = base[k] + double(rng.below(uint32_t(size[k]) + 1)) * cell;
+    const double margin = corner || rng.below(3) == 0 ? 0.0 : cell * rng.range(0, 0.25);
+    Grid scalar = shape, avx2 = shape;
+    voxel::voxelize_triangle(scalar, v[0], v[1], v[2], margin, Isa::kScalar);
+    voxel::voxelize_triangle(avx2, v[0], v[1], v[2], margin, Isa::kAvx2);
+    ASSERT_EQ(avx2.dense(), scalar.dense())
+        << "triangle " << t << " R=" << R << " cell=" << cell << " margin=" << margin << " (" << v[0].x << ","
+        << v[0].y << "," << v[0].z << ") (" << v[1].x << "," << v[1].y << "," << v[1].z << ") (" << v[2].x << ","
+        << v[2].y << "," << v[2].z << ")";
+    ++triangles;
+    cells += scalar.count();
+    // Boxes the rows take (at most 8 cells along x, 64 in all) and the single-row path does not.
+    int spans = 0, volume = 1;
+    for (int k = 0; k < 3; ++k) {
+      const double lo = std::min({v[0][k], v[1][k], v[2][k]}) - margin, hi = std::max({v[0][k], v[1][k], v[2][k]}) + margin;
+      const int n = int(std::floor((hi - origin[k]) / cell)) - int(std::floor((lo - origin[k]) / cell)) + 1;
+      spans += n > 1;
+      volume *= n;
+    }
+    small_boxes += spans >= 2 && volume <= 64;
+  }
+  std::printf("[ voxelize ] AVX2 rows vs scalar: %llu triangles (%llu small boxes of two or more rows), %llu cells, all equal\n",
+              (unsigned long long)triangles, (unsigned long long)small_boxes, (unsigned long long)cells);
+  EXPECT_GT(small_boxes, triangles / 3);
+  EXPECT_GT(cells, 10 * triangles);
+}
+
 TEST(VoxelVoxelize, PlanesAndSingleCells) {
   Grid g({0, 0, 0}, 1, 8);
   voxel::voxelize_triangle(g, {1, 2, 3}, {2, 2, 3}, {1, 3, 3}, 0);  // z = 3, covering cell column (1, 2)

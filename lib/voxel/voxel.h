@@ -8,6 +8,7 @@
 #include "core/math.h"
 #include "formats/dag.h"
 #include "voxel/hash_index.h"
+#include "trace/trace.h"  // Isa, detect_isa
 #include "trace/dag_trace.h"  // DagView, DagHit, check_dag(s), dag_first_entry
 
 namespace rtp::voxel {
@@ -91,7 +92,9 @@ class Grid {
 // every cell whose box, grown by `margin` on every side, touches the triangle (plane test and the
 // three projected edge tests with critical points), in double precision. A triangle of zero area
 // sets every cell its grown bounding box overlaps.
+// Small boxes of cells are tested with AVX2 where the CPU has it (same cells: tests compare the ISAs).
 void voxelize_triangle(Grid& grid, const Vec3d& a, const Vec3d& b, const Vec3d& c, double margin);
+void voxelize_triangle(Grid& grid, const Vec3d& a, const Vec3d& b, const Vec3d& c, double margin, Isa isa);
 // Thin (6-separating) voxelization, only a test foil: along the dominant normal axis, the cell
 // holding the plane at each covered column centre. Leaves gaps that rays can pass through.
 void voxelize_triangle_thin(Grid& grid, const Vec3d& a, const Vec3d& b, const Vec3d& c);
