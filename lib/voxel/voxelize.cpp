@@ -207,7 +207,10 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   if (all_cells_set(g, f, l)) return;
   const double dp = cell + 2 * margin;  // grown cell size; grown corner = origin + i*cell - margin
   // Plane: d1, d2 from the critical point c (dp where n > 0).
-  double d1 = 0, d2 = 0;
+  detail::CellTests t;  // the tests' constants, written once for either loop below
+  double& d1 = t.d1;
+  double& d2 = t.d2;
+  d1 = 0, d2 = 0;
   for (int k = 0; k < 3; ++k) {
     const double c = n[k] > 0 ? dp : 0;
     d1 += n[k] * (c - v[0][k]);
@@ -215,7 +218,9 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   }
   // Projected edge functions per plane (a, b) = (x, y), (y, z), (z, x); the orientation follows the
   // normal's component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
-  double ex[3][3], ey[3][3], ed[3][3];
+  double (&ex)[3][3] = t.ex;
+  double (&ey)[3][3] = t.ey;
+  double (&ed)[3][3] = t.ed;
   for (int p = 0; p < 3; ++p) {
     const int a = p, b = p == 2 ? 0 : p + 1, w = p == 0 ? 2 : p - 1;
     const double s = n[w] >= 0 ? 1.0 : -1.0;
@@ -230,13 +235,11 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   // arithmetic as the loop below, so the same cells).
   const int nx = l[0] - f[0] + 1, nyz = (l[1] - f[1] + 1) * (l[2] - f[2] + 1);
   if (isa != Isa::kScalar && nx <= detail::kRowsMaxX && nx * nyz <= detail::kRowsMaxCells) {
-    detail::CellTests t;
     for (int k = 0; k < 3; ++k) {
       t.org[k] = org[k], t.box_lo[k] = lo[k] + margin, t.box_hi[k] = hi[k] - margin, t.n[k] = n[k];
       t.f[k] = f[k], t.l[k] = l[k];
-      for (int i = 0; i < 3; ++i) t.ex[k][i] = ex[k][i], t.ey[k][i] = ey[k][i], t.ed[k][i] = ed[k][i];
     }
-    t.cell = cell, t.margin = margin, t.dp = dp, t.d1 = d1, t.d2 = d2;
+    t.cell = cell, t.margin = margin, t.dp = dp;
     uint8_t masks[detail::kRowsMaxCells];
     detail::row_masks_avx2(t, masks);
     const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
