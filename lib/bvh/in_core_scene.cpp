@@ -51,11 +51,33 @@ std::string instance_label(size_t i, const Instance& inst) {
   return s;
 }
 
+// Issue 11 ("single-instance (or identity) scenes and meshes skip the instance level"): two or more
+// instances, every record the identity (AxisMove::kNone: the world ray is the local ray), each of a
+// mesh no other instance uses, every mesh well formed (else the per-mesh build names the bad one),
+// between 1 and 2^31 - 1 triangles in all.
+bool mergeable_identity(const Scene& scene) {
+  if (scene.instances.size() < 2) return false;
+  std::vector<char> used(scene.meshes.size(), 0);
+  uint64_t triangles = 0;
+  for (const Instance& in : scene.instances) {
+    if (in.mesh >= scene.meshes.size() || used[in.mesh]) return false;
+    used[in.mesh] = 1;
+    if (axis_move(make_instance_record(in)).kind != AxisMove::kNone) return false;
+    const Mesh& m = scene.meshes[in.mesh];
+    if (m.indices.size() % 3 != 0) return false;
+    for (uint32_t v : m.indices)
+      if (v >= m.positions.size() || !is_finite(m.positions[v])) return false;
+    triangles += m.triangle_count();
+  }
+  return triangles > 0 && triangles < (uint64_t(1) << 31);
+}
+
 }  // namespace
 
 template <int W, int B>
 InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOptions& options) {
   bvh::check_options(options);
+  if (options.merge_identity_instances && mergeable_identity(scene)) return build_merged(scene, options);
   InCoreScene out;
   const size_t nm = scene.meshes.size();
   out.meshes_.resize(nm);
@@ -99,6 +121,47 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
   return out;
 }
 
+// The identity instances' meshes as one mesh in world space (= their local space), in instance order:
+// one BVH, one more identity record (the merged instance, walked directly), and the parts table that
+// gives hits their original names (SceneView::part_first). Instances of meshes without triangles are
+// left out with the warning the per-mesh build gives.
+template <int W, int B>
+InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const BuildOptions& options) {
+  InCoreScene out;
+  const size_t nm = scene.meshes.size(), ni = scene.instances.size();
+  Mesh merged;
+  merged.name = "merged identity instances";
+  for (size_t i = 0; i < ni; ++i) {
+    const Instance& inst = scene.instances[i];
+    const Mesh& m = scene.meshes[inst.mesh];
+    out.records_.push_back(make_instance_record(inst));
+    if (m.triangle_count() == 0) {
+      out.warnings_.push_back(instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH");
+      continue;
+    }
+    const uint32_t base = uint32_t(merged.positions.size());
+    out.part_first_.push_back(uint32_t(merged.indices.size() / 3));
+    out.part_instance_.push_back(uint32_t(i));
+    merged.positions.insert(merged.positions.end(), m.positions.begin(), m.positions.end());
+    for (uint32_t v : m.indices) merged.indices.push_back(base + v);
+  }
+  out.meshes_.resize(nm + 1);  // the scene's meshes (no BVH) and the merged one
+  out.meshes_[nm] = build_mesh_bvh<W, B>(merged, options, "the merged identity instances");
+  out.views_.reserve(nm + 1);
+  for (const auto& m : out.meshes_) out.views_.push_back(m.view());
+  Instance all;  // identity transform
+  all.mesh = uint32_t(nm);
+  out.records_.push_back(make_instance_record(all));
+  out.moves_ = axis_moves(out.records_.data(), out.records_.size());
+  // The instance BVH holds the merged instance alone (walks that do not take SceneView::direct).
+  std::vector<Box3f> boxes;
+  const std::vector<Box3f> local = local_boxes(out.meshes_[nm]);
+  if (!local.empty()) boxes.push_back(transform_bounds(all.transform, local.data(), local.size()));
+  out.top_ = build_box_bvh<W>(boxes, options, "instance BVH");
+  for (uint32_t& item : out.top_.items) item = uint32_t(ni);
+  return out;
+}
+
 template <int W, int B>
 SceneView<W, B> InCoreScene<W, B>::view() const {
   SceneView<W, B> v;
@@ -109,6 +172,12 @@ SceneView<W, B> InCoreScene<W, B>::view() const {
   v.meshes = views_.data();
   v.direct = direct_instance(records_.data(), records_.size());
   v.moves = moves_.data();
+  if (merged()) {
+    v.direct = uint32_t(records_.size() - 1);  // the merged instance
+    v.part_first = part_first_.data();
+    v.part_instance = part_instance_.data();
+    v.parts = uint32_t(part_first_.size());
+  }
   return v;
 }
 

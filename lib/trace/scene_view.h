@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "formats/bvh_layout.h"
+#include "formats/ray_file.h"  // fmt::Hit (name_merged_hits)
 
 namespace rtp {
 
@@ -92,6 +93,33 @@ struct SceneView {
   // axis_moves(instances): how each record moves a ray; nullptr: every visit takes the general path
   // (transform_ray). The answers are the same bit for bit either way.
   const AxisMove* moves = nullptr;
+  // A mesh merged from several identity instances (InCoreScene, BuildOptions::merge_identity_instances):
+  // its triangles are the instances' meshes in instance order, triangle p of it is triangle
+  // p - part_first[k] of instance part_instance[k] for the last k with part_first[k] <= p. The public
+  // trace calls (trace.h) report hits under those names; the kernels see the merged mesh only. Ordering
+  // hits by (t, merged triangle) is ordering them by (t, instance, triangle), so every answer is the
+  // one the unmerged scene gives. parts = 0: no merged mesh.
+  const uint32_t* part_first = nullptr;
+  const uint32_t* part_instance = nullptr;
+  uint32_t parts = 0;
 };
+
+// The original (instance, triangle) of a hit on a merged mesh (SceneView::part_first); misses and
+// views without one are left as they are.
+template <int W, int B>
+inline void name_merged_hits(const SceneView<W, B>& s, fmt::Hit* hits, size_t n) {
+  if (s.parts == 0) return;
+  for (size_t i = 0; i < n; ++i) {
+    fmt::Hit& h = hits[i];
+    if (h.instance == fmt::Hit::kNone) continue;
+    uint32_t lo = 0, hi = s.parts;  // the last k with part_first[k] <= prim
+    while (hi - lo > 1) {
+      const uint32_t mid = (lo + hi) / 2;
+      (s.part_first[mid] <= h.prim ? lo : hi) = mid;
+    }
+    h.instance = s.part_instance[lo];
+    h.prim -= s.part_first[lo];
+  }
+}
 
 }  // namespace rtp

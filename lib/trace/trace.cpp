@@ -57,9 +57,11 @@ static void check_packet_size(uint32_t packet) {
     throw Error(ExitCode::kUsage, "packet size " + std::to_string(packet) + " is not 0, 4, 8 or 16");
 }
 
+namespace {
+
 template <int W, int B>
-TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
-                         const TraceOptions& options) {
+TraceStats closest_kernel(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
+                          const TraceOptions& options) {
   if (options.packet) {
     check_packet_size(options.packet);
     switch (usable(options.isa)) {
@@ -74,6 +76,27 @@ TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt
     case Isa::kScalar: break;
   }
   return scalar::closest<W, B>(scene, rays, hits, n, options.order);
+}
+
+template <int W, int B>
+TraceStats multi_kernel(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
+                        fmt::Hit* hits, uint32_t* counts, const TraceOptions& options, bool cull) {
+  switch (usable(options.isa)) {
+    case Isa::kAvx512: return avx512::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+    case Isa::kAvx2: return avx2::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+    case Isa::kScalar: break;
+  }
+  return scalar::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+}
+
+}  // namespace
+
+template <int W, int B>
+TraceStats trace_closest(const SceneView<W, B>& scene, const fmt::Ray* rays, fmt::Hit* hits, size_t n,
+                         const TraceOptions& options) {
+  const TraceStats stats = closest_kernel(scene, rays, hits, n, options);
+  name_merged_hits(scene, hits, n);
+  return stats;
 }
 
 template <int W, int B>
@@ -101,13 +124,10 @@ TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_
   if (max_hits < 1 || max_hits > kMaxMultiHit)
     throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
                                       std::to_string(kMaxMultiHit) + "]");
-  const bool cull = method == MultiHitMethod::kNodeCulling;
-  switch (usable(options.isa)) {
-    case Isa::kAvx512: return avx512::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
-    case Isa::kAvx2: return avx2::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
-    case Isa::kScalar: break;
-  }
-  return scalar::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
+  const TraceStats stats = multi_kernel(scene, rays, n, max_hits, hits, counts, options,
+                                        method == MultiHitMethod::kNodeCulling);
+  name_merged_hits(scene, hits, n * size_t(max_hits));
+  return stats;
 }
 
 template <int B>

@@ -1,0 +1,140 @@
+// Issue 11, "identity scenes skip the instance level": InCoreScene merges a scene whose instances are all
+// the identity, each of its own mesh, into one mesh BVH (BuildOptions::merge_identity_instances). Every
+// answer must be the unmerged scene's bit for bit (closest t, instance, prim, u, v; any-hit; the N
+// closest), on every ISA, order and packet size, and only such scenes may be merged.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "bvh/bvh.h"
+#include "oracle/rays.h"
+#include "scene/import.h"
+#include "test_trace_paths.h"
+
+namespace rtp {
+namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+
+using trace_test::check_all_paths;
+using trace_test::PathResult;
+using trace_test::same_hit;
+
+size_t rays_per_kind() { return std::getenv("RTP_SANITIZED") ? 300 : 2000; }
+
+Scene flight_helmet() {
+  const std::string path = RTP_SOURCE_DIR "/samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf";
+  EXPECT_TRUE(std::filesystem::exists(path)) << "committed sample missing: " << path;
+  return import_gltf(path);
+}
+
+// Rays of every kind, aimed with the unmerged scene's own answers.
+std::vector<fmt::Ray> rays_for(const Scene& scene, const SceneView<8, 8>& view) {
+  RayGenOptions gen;
+  gen.seed = 11;
+  gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { trace_closest<8, 8>(view, r, h, n, {}); };
+  std::vector<fmt::Ray> rays;
+  for (RayKind kind : kAllRayKinds) {
+    const std::vector<fmt::Ray> k = generate_rays(scene, kind, rays_per_kind(), gen);
+    rays.insert(rays.end(), k.begin(), k.end());
+  }
+  return rays;
+}
+
+// The merged build answers every ray as the unmerged one; returns the instances its hits name.
+std::set<uint32_t> expect_same_answers(const Scene& scene, const std::string& what) {
+  BuildOptions apart;
+  apart.merge_identity_instances = false;
+  const InCoreScene<8, 8> merged = InCoreScene<8, 8>::build(scene);
+  const InCoreScene<8, 8> unmerged = InCoreScene<8, 8>::build(scene, apart);
+  EXPECT_TRUE(merged.merged()) << what;
+  EXPECT_FALSE(unmerged.merged()) << what;
+  EXPECT_EQ(merged.instances().size(), scene.instances.size() + 1) << what << ": the merged instance's record is last";
+  EXPECT_EQ(merged.warnings(), unmerged.warnings()) << what;
+  const std::vector<fmt::Ray> rays = rays_for(scene, unmerged.view());
+  // Every ISA x order x packet size of each build agrees with its scalar octant-stack answer ...
+  const PathResult a = check_all_paths<8, 8>(merged.view(), rays, what + " (merged)");
+  const PathResult b = check_all_paths<8, 8>(unmerged.view(), rays, what + " (one BVH per mesh)");
+  // ... and the two builds agree ray by ray.
+  std::set<uint32_t> named;
+  int bad = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (a.hits[i].instance != fmt::Hit::kNone) named.insert(a.hits[i].instance);
+    if (same_hit(a.hits[i], b.hits[i]) && a.occluded[i] == b.occluded[i]) continue;
+    if (++bad <= 5)
+      ADD_FAILURE() << what << " ray " << i << ": merged t " << a.hits[i].t << " instance " << a.hits[i].instance
+                    << " prim " << a.hits[i].prim << ", unmerged t " << b.hits[i].t << " instance " << b.hits[i].instance
+                    << " prim " << b.hits[i].prim;
+  }
+  EXPECT_EQ(bad, 0) << what;
+  // The N closest (Gribble's node culling), every ISA.
+  for (Isa isa : {Isa::kScalar, Isa::kAvx2, Isa::kAvx512}) {
+    if (static_cast<int>(isa) > static_cast<int>(detect_isa())) continue;
+    constexpr uint32_t kN = 8;
+    std::vector<fmt::Hit> ma(rays.size() * kN), mb(rays.size() * kN);
+    std::vector<uint32_t> ca(rays.size()), cb(rays.size());
+    TraceOptions o;
+    o.isa = isa;
+    trace_multi<8, 8>(merged.view(), rays.data(), rays.size(), kN, ma.data(), ca.data(), o);
+    trace_multi<8, 8>(unmerged.view(), rays.data(), rays.size(), kN, mb.data(), cb.data(), o);
+    EXPECT_EQ(ca, cb) << what << " multi-hit counts, " << isa_name(isa);
+    size_t differ = 0;
+    for (size_t k = 0; k < ma.size(); ++k) differ += !same_hit(ma[k], mb[k]);
+    EXPECT_EQ(differ, 0u) << what << " multi-hit, " << isa_name(isa);
+  }
+  return named;
+}
+
+TEST(MergedIdentityInstances, FlightHelmetAnswersAsItsSixInstances) {
+  const Scene scene = flight_helmet();
+  ASSERT_EQ(scene.instances.size(), 6u);
+  const std::set<uint32_t> named = expect_same_answers(scene, "FlightHelmet");
+  EXPECT_GE(named.size(), 5u) << "the hits name the helmet's parts, not one merged instance";
+  for (uint32_t i : named) EXPECT_LT(i, scene.instances.size());
+}
+
+// Instances in another order than their meshes, and one of a mesh without triangles: hits are named
+// by instance order (the order ties are broken in), and the empty mesh's warning is the unmerged one.
+TEST(MergedIdentityInstances, InstanceOrderAndEmptyMeshes) {
+  Scene scene = flight_helmet();
+  std::reverse(scene.instances.begin(), scene.instances.end());
+  Mesh empty;
+  empty.name = "empty";
+  scene.meshes.push_back(empty);
+  Instance none;
+  none.mesh = uint32_t(scene.meshes.size() - 1);
+  scene.instances.insert(scene.instances.begin() + 2, none);
+  const std::set<uint32_t> named = expect_same_answers(scene, "FlightHelmet reversed, with an empty mesh");
+  EXPECT_EQ(named.count(2), 0u) << "instance 2 has no triangles";
+  EXPECT_GE(named.size(), 5u);
+}
+
+// Only scenes whose instances are all the identity, each of its own mesh, are merged.
+TEST(MergedIdentityInstances, OnlyIdentityInstancesOfTheirOwnMeshes) {
+  const Scene base = flight_helmet();
+  EXPECT_TRUE((InCoreScene<8, 8>::build(base).merged()));
+  EXPECT_TRUE((InCoreScene<4, 4>::build(base).merged()));
+  Scene moved = base;
+  moved.instances[3].transform(0, 3) = 0.25;  // one instance translated
+  EXPECT_FALSE((InCoreScene<8, 8>::build(moved).merged()));
+  Scene shared = base;
+  shared.instances[4].mesh = shared.instances[1].mesh;  // two instances of one mesh
+  EXPECT_FALSE((InCoreScene<8, 8>::build(shared).merged()));
+  Scene one = base;
+  one.instances.resize(1);  // one identity instance: SceneView::direct already walks it without the level
+  EXPECT_FALSE((InCoreScene<8, 8>::build(one).merged()));
+  Scene bad = base;
+  bad.meshes[bad.instances[0].mesh].indices[0] = 0xFFFFFFF0u;  // the per-mesh build names the bad mesh
+  try {
+    (void)InCoreScene<8, 8>::build(bad);
+    ADD_FAILURE() << "a vertex index out of range must be refused";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh " + std::to_string(bad.instances[0].mesh)), std::string::npos) << e.what();
+  }
+}
+
+}}  // namespace
+}  // namespace rtp
