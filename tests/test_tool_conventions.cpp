@@ -128,9 +128,14 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   EXPECT_NE(text.out.find(" read (" ), std::string::npos) << text.out;
   EXPECT_NE(text.out.find(" glTF + 1 buffer "), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("3 images not read"), std::string::npos) << text.out;
-  EXPECT_NE(text.out.find("B per instance"), std::string::npos) << text.out;
+  // One triangle placed once: no bytes per instance (they would be the whole package's).
+  EXPECT_NE(text.out.find("B per unique triangle, no mesh instanced)"), std::string::npos) << text.out;
+  EXPECT_EQ(text.out.find("B per instance"), std::string::npos) << text.out;
   // A .glb holds its buffer: input bytes = the file.
   const fs::path glb = source_dir() / "samples/generated/gallery.glb";
+  const ToolResult gt = run_tool("rtpack-convert", {glb.string(), "-o", (dir / "g.rtp").string()}, dir);
+  ASSERT_EQ(gt.code, 0) << gt.err;
+  EXPECT_NE(gt.out.find(" B per instance)"), std::string::npos) << "gallery places its meshes more than once: " << gt.out;
   const ToolResult g = run_tool("rtpack-convert", {glb.string(), "--json", "-q", "-o", (dir / "g.rtp").string()}, dir);
   ASSERT_EQ(g.code, 0) << g.err;
   EXPECT_EQ(nlohmann::json::parse(g.out)["input_bytes"].get<uint64_t>(), fs::file_size(glb));

@@ -1,5 +1,6 @@
 // rtpack-convert: glTF scene -> chunked .rtp package (import, prepare, batching points, per-chunk
 // wide BVHs, zstd chunks). --dry-run stops after preparation and prints the scene summary.
+#include <algorithm>
 #include <tbb/global_control.h>
 
 #include <CLI/CLI.hpp>
@@ -219,8 +220,13 @@ int main(int argc, char** argv) {
         read += " (" + human(double(inf.gltf_bytes)) + " glTF + " + std::to_string(inf.buffer_files) +
                 (inf.buffer_files == 1 ? " buffer " : " buffers ") + human(double(inf.buffer_bytes)) + ")";
       if (inf.images > 0) read += ", " + std::to_string(inf.images) + (inf.images == 1 ? " image" : " images") + " not read";
-      std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %.1f B per instance)\n", read.c_str(),
-                  human(double(rep.package_bytes)).c_str(), double(rep.package_bytes) / tris, per_instance);
+      // Bytes per instance only where some mesh is instanced: for six meshes placed once each, the
+      // package's bytes over six (FlightHelmet: "692978.7 B per instance") described nothing.
+      const bool instancing = std::any_of(plan.mesh_instanced.begin(), plan.mesh_instanced.end(), [](auto m) { return bool(m); });
+      char per_inst[64] = "no mesh instanced";
+      if (instancing) std::snprintf(per_inst, sizeof per_inst, "%.1f B per instance", per_instance);
+      std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %s)\n", read.c_str(),
+                  human(double(rep.package_bytes)).c_str(), double(rep.package_bytes) / tris, per_inst);
       for (const auto& [kind, s] : rep.by_kind)
         std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
                     human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
