@@ -1,7 +1,8 @@
-// Issue 11, "identity scenes skip the instance level": InCoreScene merges a scene whose instances are all
-// the identity, each of its own mesh, into one mesh BVH (BuildOptions::merge_identity_instances). Every
-// answer must be the unmerged scene's bit for bit (closest t, instance, prim, u, v; any-hit; the N
-// closest), on every ISA, order and packet size, and only such scenes may be merged.
+// Issue 11, "identity scenes skip the instance level": InCoreScene merges a scene whose instances share
+// one transform (all the identity, or one root transform), each of its own mesh, into one mesh BVH
+// (BuildOptions::merge_instances). Every answer must be the unmerged scene's bit for bit (closest t,
+// instance, prim, u, v; any-hit; the N closest), on every ISA, order and packet size, and only such
+// scenes may be merged.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -47,7 +48,7 @@ std::vector<fmt::Ray> rays_for(const Scene& scene, const SceneView<8, 8>& view) 
 // The merged build answers every ray as the unmerged one; returns the instances its hits name.
 std::set<uint32_t> expect_same_answers(const Scene& scene, const std::string& what) {
   BuildOptions apart;
-  apart.merge_identity_instances = false;
+  apart.merge_instances = false;
   const InCoreScene<8, 8> merged = InCoreScene<8, 8>::build(scene);
   const InCoreScene<8, 8> unmerged = InCoreScene<8, 8>::build(scene, apart);
   EXPECT_TRUE(merged.merged()) << what;
@@ -112,7 +113,23 @@ TEST(MergedIdentityInstances, InstanceOrderAndEmptyMeshes) {
   EXPECT_GE(named.size(), 5u);
 }
 
-// Only scenes whose instances are all the identity, each of its own mesh, are merged.
+// One transform over every mesh node (a glTF root node rotated, scaled, moved): merged under that one
+// transform, walked through the instance level once instead of once per part.
+TEST(MergedIdentityInstances, OneSharedTransform) {
+  Scene scene = flight_helmet();
+  const double c = 0.8, s = 0.6;  // a turn about y, a scale of 2.5 and a move
+  Affine3x4 m;
+  const double rows[3][4] = {{2.5 * c, 0, 2.5 * s, 10.25}, {0, 2.5, 0, -3.5}, {-2.5 * s, 0, 2.5 * c, 7.0}};
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) m(r, k) = rows[r][k];
+  for (Instance& in : scene.instances) in.transform = m;
+  const std::set<uint32_t> named = expect_same_answers(scene, "FlightHelmet under one transform");
+  EXPECT_GE(named.size(), 5u);
+  const InCoreScene<8, 8> merged = InCoreScene<8, 8>::build(scene);
+  EXPECT_EQ(merged.view().direct, kNoDirectInstance) << "a moved merged instance is walked as an instance";
+}
+
+// Only scenes whose instances share one transform, each of its own mesh, are merged.
 TEST(MergedIdentityInstances, OnlyIdentityInstancesOfTheirOwnMeshes) {
   const Scene base = flight_helmet();
   EXPECT_TRUE((InCoreScene<8, 8>::build(base).merged()));
@@ -120,6 +137,9 @@ TEST(MergedIdentityInstances, OnlyIdentityInstancesOfTheirOwnMeshes) {
   Scene moved = base;
   moved.instances[3].transform(0, 3) = 0.25;  // one instance translated
   EXPECT_FALSE((InCoreScene<8, 8>::build(moved).merged()));
+  Scene singular = base;
+  for (Instance& in : singular.instances) in.transform(1, 1) = 0;  // shared, but no ray can enter it
+  EXPECT_FALSE((InCoreScene<8, 8>::build(singular).merged()));
   Scene shared = base;
   shared.instances[4].mesh = shared.instances[1].mesh;  // two instances of one mesh
   EXPECT_FALSE((InCoreScene<8, 8>::build(shared).merged()));

@@ -36,11 +36,12 @@ struct BuildOptions {
   uint32_t leaf_size = 0;    // a-priori leaf collapse (Benthin §4.2): a subtree with <= leaf_size
                              // triangles becomes one leaf. 0 = W. At most 16·B (16 blocks per leaf).
   uint32_t top_leaf_size = 1;  // the same for the instance BVH, 1..16 instances
-  // In core (InCoreScene): a scene of two or more instances that are all the identity, each of a mesh
-  // of its own (FlightHelmet's six parts), is built as one mesh BVH walked without the instance level;
+  // In core (InCoreScene): a scene of two or more instances that share one transform, each of a mesh of
+  // its own (FlightHelmet's six identity parts; mesh nodes under one root transform), is built as one
+  // mesh BVH under one instance, walked without the instance level when the transform is the identity;
   // hits still name the original instance and triangle. Same answers bit for bit; false keeps one BVH
   // per mesh under an instance BVH.
-  bool merge_identity_instances = true;
+  bool merge_instances = true;
   // Parallelism (never changes the result): ranges of at least `task_threshold` primitives build
   // their two halves / their children as TBB tasks; ranges of at least `parallel_threshold` bin and
   // partition with parallel loops.
@@ -152,9 +153,9 @@ class InCoreScene {
   const BvhStats& top_stats() const { return top_.stats; }
   const std::vector<fmt::InstanceRecord>& instances() const { return records_; }
   const std::vector<std::string>& warnings() const { return warnings_; }
-  // True when the identity instances were merged into one mesh BVH (BuildOptions::merge_identity_instances):
+  // True when the instances were merged into one mesh BVH (BuildOptions::merge_instances):
   // mesh(mesh_count() - 1) is that BVH, the scene's own meshes have none, and instances() holds one
-  // identity record more, the merged one.
+  // record more, the merged one (their shared transform).
   bool merged() const { return !part_first_.empty(); }
 
  private:

@@ -3,6 +3,7 @@
 #include <oneapi/tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstring>
 
 #include "bvh/build_internal.h"
 #include "core/error.h"
@@ -51,18 +52,27 @@ std::string instance_label(size_t i, const Instance& inst) {
   return s;
 }
 
+// The fields of a record that move a ray (SPEC §2.4): T, L, L^-1 and the mirrored flag.
+bool same_move(const fmt::InstanceRecord& a, const fmt::InstanceRecord& b) {
+  return std::memcmp(a.translation, b.translation, sizeof a.translation) == 0 &&
+         std::memcmp(a.linear, b.linear, sizeof a.linear) == 0 &&
+         std::memcmp(a.inverse_linear, b.inverse_linear, sizeof a.inverse_linear) == 0 && a.flags == b.flags;
+}
+
 // Issue 11 ("single-instance (or identity) scenes and meshes skip the instance level"): two or more
-// instances, every record the identity (AxisMove::kNone: the world ray is the local ray), each of a
-// mesh no other instance uses, every mesh well formed (else the per-mesh build names the bad one),
-// between 1 and 2^31 - 1 triangles in all.
-bool mergeable_identity(const Scene& scene) {
+// instances whose records move a ray alike (all the identity, as FlightHelmet's six parts, or one
+// root transform over every mesh node), each of a mesh no other instance uses, the transform invertible,
+// every mesh well formed (else the per-mesh build names the bad one), between 1 and 2^31 - 1 triangles.
+bool mergeable(const Scene& scene) {
   if (scene.instances.size() < 2) return false;
+  const fmt::InstanceRecord first = make_instance_record(scene.instances[0]);
+  if (!record_invertible(first)) return false;
   std::vector<char> used(scene.meshes.size(), 0);
   uint64_t triangles = 0;
   for (const Instance& in : scene.instances) {
     if (in.mesh >= scene.meshes.size() || used[in.mesh]) return false;
     used[in.mesh] = 1;
-    if (axis_move(make_instance_record(in)).kind != AxisMove::kNone) return false;
+    if (!same_move(make_instance_record(in), first)) return false;
     const Mesh& m = scene.meshes[in.mesh];
     if (m.indices.size() % 3 != 0) return false;
     for (uint32_t v : m.indices)
@@ -77,7 +87,10 @@ bool mergeable_identity(const Scene& scene) {
 template <int W, int B>
 InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOptions& options) {
   bvh::check_options(options);
-  if (options.merge_identity_instances && mergeable_identity(scene)) return build_merged(scene, options);
+  if (options.merge_instances && mergeable(scene)) {
+    InCoreScene merged = build_merged(scene, options);
+    if (merged.merged()) return merged;  // else: world bounds out of range, named by the build below
+  }
   InCoreScene out;
   const size_t nm = scene.meshes.size();
   out.meshes_.resize(nm);
@@ -121,8 +134,8 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
   return out;
 }
 
-// The identity instances' meshes as one mesh in world space (= their local space), in instance order:
-// one BVH, one more identity record (the merged instance, walked directly), and the parts table that
+// The instances' meshes as one mesh in their shared local space, in instance order: one BVH, one more
+// record with the shared transform (the merged instance), and the parts table that
 // gives hits their original names (SceneView::part_first). Instances of meshes without triangles are
 // left out with the warning the per-mesh build gives.
 template <int W, int B>
@@ -130,7 +143,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const Buil
   InCoreScene out;
   const size_t nm = scene.meshes.size(), ni = scene.instances.size();
   Mesh merged;
-  merged.name = "merged identity instances";
+  merged.name = "merged instances";
   for (size_t i = 0; i < ni; ++i) {
     const Instance& inst = scene.instances[i];
     const Mesh& m = scene.meshes[inst.mesh];
@@ -146,17 +159,21 @@ InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const Buil
     for (uint32_t v : m.indices) merged.indices.push_back(base + v);
   }
   out.meshes_.resize(nm + 1);  // the scene's meshes (no BVH) and the merged one
-  out.meshes_[nm] = build_mesh_bvh<W, B>(merged, options, "the merged identity instances");
+  out.meshes_[nm] = build_mesh_bvh<W, B>(merged, options, "the merged instances");
   out.views_.reserve(nm + 1);
   for (const auto& m : out.meshes_) out.views_.push_back(m.view());
-  Instance all;  // identity transform
+  Instance all = scene.instances[0];  // the transform every instance shares
   all.mesh = uint32_t(nm);
   out.records_.push_back(make_instance_record(all));
   out.moves_ = axis_moves(out.records_.data(), out.records_.size());
-  // The instance BVH holds the merged instance alone (walks that do not take SceneView::direct).
+  // The instance BVH holds the merged instance alone: walked as any instance when the shared transform
+  // moves rays, skipped through SceneView::direct when it is the identity.
   std::vector<Box3f> boxes;
   const std::vector<Box3f> local = local_boxes(out.meshes_[nm]);
   if (!local.empty()) boxes.push_back(transform_bounds(all.transform, local.data(), local.size()));
+  for (const Box3f& b : boxes)
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(b.lo[a]) || !std::isfinite(b.hi[a])) return InCoreScene{};  // the caller builds per mesh
   out.top_ = build_box_bvh<W>(boxes, options, "instance BVH");
   for (uint32_t& item : out.top_.items) item = uint32_t(ni);
   return out;
@@ -173,7 +190,8 @@ SceneView<W, B> InCoreScene<W, B>::view() const {
   v.direct = direct_instance(records_.data(), records_.size());
   v.moves = moves_.data();
   if (merged()) {
-    v.direct = uint32_t(records_.size() - 1);  // the merged instance
+    // The merged instance: walked directly when its transform is the identity.
+    v.direct = moves_.back().kind == AxisMove::kNone ? uint32_t(records_.size() - 1) : kNoDirectInstance;
     v.part_first = part_first_.data();
     v.part_instance = part_instance_.data();
     v.parts = uint32_t(part_first_.size());

@@ -93,12 +93,12 @@ struct SceneView {
   // axis_moves(instances): how each record moves a ray; nullptr: every visit takes the general path
   // (transform_ray). The answers are the same bit for bit either way.
   const AxisMove* moves = nullptr;
-  // A mesh merged from several identity instances (InCoreScene, BuildOptions::merge_identity_instances):
-  // its triangles are the instances' meshes in instance order, triangle p of it is triangle
-  // p - part_first[k] of instance part_instance[k] for the last k with part_first[k] <= p. The public
-  // trace calls (trace.h) report hits under those names; the kernels see the merged mesh only. Ordering
-  // hits by (t, merged triangle) is ordering them by (t, instance, triangle), so every answer is the
-  // one the unmerged scene gives. parts = 0: no merged mesh.
+  // A mesh merged from several instances that share one transform (InCoreScene,
+  // BuildOptions::merge_instances): its triangles are the instances' meshes in instance order, triangle
+  // p of it is triangle p - part_first[k] of instance part_instance[k] for the last k with
+  // part_first[k] <= p. The public trace calls (trace.h) report hits under those names; the kernels see
+  // the merged mesh only. Ordering hits by (t, merged triangle) is ordering them by (t, instance,
+  // triangle), so every answer is the one the unmerged scene gives. parts = 0: no merged mesh.
   const uint32_t* part_first = nullptr;
   const uint32_t* part_instance = nullptr;
   uint32_t parts = 0;
