@@ -52,6 +52,11 @@ std::string instance_label(size_t i, const Instance& inst) {
   return s;
 }
 
+// The same words whether the scene is merged or not (tests compare the warnings of both builds).
+std::string no_triangles_warning(size_t i, const Instance& inst) {
+  return instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH";
+}
+
 // The fields of a record that move a ray (SPEC §2.4): T, L, L^-1 and the mirrored flag.
 bool same_move(const fmt::InstanceRecord& a, const fmt::InstanceRecord& b) {
   return std::memcmp(a.translation, b.translation, sizeof a.translation) == 0 &&
@@ -114,7 +119,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
     out.records_.push_back(make_instance_record(inst));
     const fmt::InstanceRecord& rec = out.records_.back();
     if (local[inst.mesh].empty()) {
-      out.warnings_.push_back(instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH");
+      out.warnings_.push_back(no_triangles_warning(i, inst));
       continue;
     }
     if (!record_invertible(rec)) {
@@ -149,7 +154,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const Buil
     const Mesh& m = scene.meshes[inst.mesh];
     out.records_.push_back(make_instance_record(inst));
     if (m.triangle_count() == 0) {
-      out.warnings_.push_back(instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH");
+      out.warnings_.push_back(no_triangles_warning(i, inst));
       continue;
     }
     const uint32_t base = uint32_t(merged.positions.size());

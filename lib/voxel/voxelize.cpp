@@ -234,6 +234,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   // cell tested, four along x per AVX2 register (voxelize_rows_avx2.cpp, the same tests in the same
   // arithmetic as the loop below, so the same cells).
   const int nx = l[0] - f[0] + 1, nyz = (l[1] - f[1] + 1) * (l[2] - f[2] + 1);
+  const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);  // most boxes: bits gathered, stored once
   if (isa != Isa::kScalar && nx <= detail::kRowsMaxX && nx * nyz <= detail::kRowsMaxCells) {
     for (int k = 0; k < 3; ++k) {
       t.org[k] = org[k], t.box_lo[k] = lo[k] + margin, t.box_hi[k] = hi[k] - margin, t.n[k] = n[k];
@@ -242,7 +243,6 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
     t.cell = cell, t.margin = margin, t.dp = dp;
     uint8_t masks[detail::kRowsMaxCells];
     detail::row_masks_avx2(t, masks);
-    const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
     uint64_t bits = 0;
     for (int z = f[2], r = 0; z <= l[2]; ++z)
       for (int y = f[1]; y <= l[1]; ++y, ++r) {
@@ -278,7 +278,6 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   const double wmag = std::max(std::fabs(lo[w]), std::fabs(hi[w])) + dp + std::fabs(base_w);
   const bool solve = l[w] - f[w] >= 2 && std::fabs(nw) > 1e-150 && std::isfinite(inv_nw) && std::isfinite(np_lo) &&
                      std::isfinite(np_hi);
-  const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
   uint64_t bits = 0;  // one 4^3 block (most boxes): gathered and stored once
   for (int ib = f[b]; ib <= l[b]; ++ib) {
     const double pb = org[b] + ib * cell - margin;
