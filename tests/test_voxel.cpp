@@ -272,7 +272,7 @@ TEST(VoxelVoxelize, ConservativeEqualsExactSeparatingAxisReference) {
 TEST(VoxelVoxelize, Avx2RowsSetTheScalarCells) {
   if (detect_isa() == Isa::kScalar) GTEST_SKIP() << "this CPU has no AVX2: only the scalar loop runs here";
   Rng rng(7);
-  uint64_t triangles = 0, small_boxes = 0, cells = 0;
+  uint64_t triangles = 0, small_boxes = 0, small_across = 0, cells = 0;
   for (int t = 0; t < 20000; ++t) {
     const uint32_t R = 16u << rng.below(2);
     const float cell = float(rng.range(0.01, 3.0));
@@ -307,19 +307,27 @@ TEST(VoxelVoxelize, Avx2RowsSetTheScalarCells) {
         << v[2].y << "," << v[2].z << ")";
     ++triangles;
     cells += scalar.count();
-    // Boxes the rows take (at most 8 cells along x, 64 in all) and the single-row path does not.
+    // Boxes the rows take (at most 8 cells along x, 64 in all) and the single-row path does not, and
+    // of those the ones across a face of a 4^3 block (their cells gathered block by block).
     int spans = 0, volume = 1;
+    bool across = false;
     for (int k = 0; k < 3; ++k) {
       const double lo = std::min({v[0][k], v[1][k], v[2][k]}) - margin, hi = std::max({v[0][k], v[1][k], v[2][k]}) + margin;
-      const int n = int(std::floor((hi - origin[k]) / cell)) - int(std::floor((lo - origin[k]) / cell)) + 1;
+      const int first = int(std::floor((lo - origin[k]) / cell)), last = int(std::floor((hi - origin[k]) / cell));
+      const int n = last - first + 1;
       spans += n > 1;
       volume *= n;
+      across = across || (std::max(first, 0) >> 2) != (std::min(last, int(R) - 1) >> 2);
     }
     small_boxes += spans >= 2 && volume <= 64;
+    small_across += spans >= 2 && volume <= 64 && across;
   }
-  std::printf("[ voxelize ] AVX2 rows vs scalar: %llu triangles (%llu small boxes of two or more rows), %llu cells, all equal\n",
-              (unsigned long long)triangles, (unsigned long long)small_boxes, (unsigned long long)cells);
+  std::printf("[ voxelize ] AVX2 rows vs scalar: %llu triangles (%llu small boxes of two or more rows, %llu of them "
+              "across a block face), %llu cells, all equal\n",
+              (unsigned long long)triangles, (unsigned long long)small_boxes, (unsigned long long)small_across,
+              (unsigned long long)cells);
   EXPECT_GT(small_boxes, triangles / 3);
+  EXPECT_GT(small_across, small_boxes / 4);
   EXPECT_GT(cells, 10 * triangles);
 }
 

@@ -234,7 +234,6 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   // cell tested, four along x per AVX2 register (voxelize_rows_avx2.cpp, the same tests in the same
   // arithmetic as the loop below, so the same cells).
   const int nx = l[0] - f[0] + 1, nyz = (l[1] - f[1] + 1) * (l[2] - f[2] + 1);
-  const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);  // most boxes: bits gathered, stored once
   if (isa != Isa::kScalar && nx <= detail::kRowsMaxX && nx * nyz <= detail::kRowsMaxCells) {
     for (int k = 0; k < 3; ++k) {
       t.org[k] = org[k], t.box_lo[k] = lo[k] + margin, t.box_hi[k] = hi[k] - margin, t.n[k] = n[k];
@@ -243,19 +242,26 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
     t.cell = cell, t.margin = margin, t.dp = dp;
     uint8_t masks[detail::kRowsMaxCells];
     detail::row_masks_avx2(t, masks);
-    uint64_t bits = 0;
+    // The cells gathered per 4^3 block of the box (at most 3 along x: 8 cells from any offset) and
+    // each block's bits stored once: a box across block faces was a brick lookup per cell. A row's
+    // mask shifted by the box's x offset in its first block holds 4 cells per block, lowest first.
+    const int bx0 = f[0] >> 2, by0 = f[1] >> 2, bz0 = f[2] >> 2;
+    const int nbx = (l[0] >> 2) - bx0 + 1, nby = (l[1] >> 2) - by0 + 1, nbz = (l[2] >> 2) - bz0 + 1;
+    constexpr int kMaxBlocks = 20;  // the most blocks a box of <= 64 cells, <= 8 along x, meets (2 x 2 x 16 at offset 3)
+    uint64_t bits[kMaxBlocks];
+    const int blocks = nbx * nby * nbz;
+    for (int i = 0; i < blocks; ++i) bits[i] = 0;
     for (int z = f[2], r = 0; z <= l[2]; ++z)
       for (int y = f[1]; y <= l[1]; ++y, ++r) {
-        const uint32_t m = masks[r];
+        const uint32_t m = uint32_t(masks[r]) << (f[0] & 3);
         if (!m) continue;
-        if (one_block) {  // x = f0 + j stays in the block: the row's bits shift in whole
-          bits |= uint64_t(m) << ((f[0] & 3) + 4 * (y & 3) + 16 * (z & 3));
-          continue;
-        }
-        for (uint32_t rest = m; rest; rest &= rest - 1)
-          g.set(uint32_t(f[0] + std::countr_zero(rest)), uint32_t(y), uint32_t(z));
+        const int shift = 4 * (y & 3) + 16 * (z & 3);
+        uint64_t* row = bits + nbx * (((y >> 2) - by0) + nby * ((z >> 2) - bz0));
+        for (int i = 0; i < nbx; ++i) row[i] |= uint64_t((m >> (4 * i)) & 0xFu) << shift;
       }
-    if (bits) g.or_block(uint32_t(f[0]) >> 2, uint32_t(f[1]) >> 2, uint32_t(f[2]) >> 2, bits);
+    for (int i = 0; i < blocks; ++i)
+      if (bits[i])
+        g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
     return;
   }
   // Schwarz & Seidel 2010 §3.1, by columns of the dominant projection: the plane (a, b) whose third
@@ -278,7 +284,8 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   const double wmag = std::max(std::fabs(lo[w]), std::fabs(hi[w])) + dp + std::fabs(base_w);
   const bool solve = l[w] - f[w] >= 2 && std::fabs(nw) > 1e-150 && std::isfinite(inv_nw) && std::isfinite(np_lo) &&
                      std::isfinite(np_hi);
-  uint64_t bits = 0;  // one 4^3 block (most boxes): gathered and stored once
+  const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
+  uint64_t bits = 0;  // one 4^3 block: gathered and stored once
   for (int ib = f[b]; ib <= l[b]; ++ib) {
     const double pb = org[b] + ib * cell - margin;
     if (pb > hi[b] - margin || pb + dp < lo[b] + margin) continue;  // bounding boxes (the range is padded)
