@@ -167,7 +167,6 @@ OutputFile::~OutputFile() {
 
 void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
   const char* p = static_cast<const char*>(data);
-  const uint64_t start = offset, written = size;
   while (size) {
     const ssize_t n = ::pwrite(fd_, p, size, off_t(offset));
     if (n < 0 && errno == EINTR) continue;
@@ -177,11 +176,6 @@ void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
     size -= size_t(n);
     offset += uint64_t(n);
   }
-  // Writeback of these bytes starts now, while the caller computes the next ones, so that commit()'s
-  // fsync waits for the tail only (forest-1m: the fsync of its 212 MB was 145 ms after the last
-  // write). Asynchronous (SYNC_FILE_RANGE_WRITE waits for nothing); best effort: a file system
-  // without it keeps every byte for the fsync.
-  if (!device_ && written > 0) ::sync_file_range(fd_, off_t(start), off_t(written), SYNC_FILE_RANGE_WRITE);
 }
 
 void OutputFile::set_size(uint64_t size) {
