@@ -253,7 +253,8 @@ TEST(OutOfCore, SpeculationKeepsTheHitsAndSavesLoads) {
 // The on-demand chunks are written with zstd's literals raw (ConvertOptions::zstd_raw_literals) and a
 // longer shortest match (zstd_leaf_min_match): the decompressed chunks and so every answer are those of
 // Huffman-coded literals and the level's own matches; only the stored bytes differ, and each setting
-// reaches the batching points' frames.
+// reaches the batching points' frames. At level 2, whose own shortest match (6 for these chunks, zstd
+// 1.5) differs from kDefaultLeafMinMatch: level 1's own is 7, the same frames.
 TEST(OutOfCore, LeafFrameSettingsChangeOnlyTheStoredBytes) {
   const fs::path dir = temp_dir("ooc_literals");
   const Sample s = samples()[3];  // FlightHelmet: float-heavy leaf blocks
@@ -267,6 +268,7 @@ TEST(OutOfCore, LeafFrameSettingsChangeOnlyTheStoredBytes) {
   ConvertSettings cs;
   cs.input = s.path;
   cs.width = s.width;
+  cs.zstd_level = 2;
   std::vector<std::vector<AlignedBytes>> raw;
   std::vector<uint64_t> point_stored;
   for (const Variant& v : variants) {

@@ -17,12 +17,13 @@ namespace rtp {
 // The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd): the level
 // with the least time to make a package and read it once from a 100 MB/s disk (convert + load + bytes /
 // 100 MB/s) over FlightHelmet and forest-2k, times within 3 % of the least counting as a tie that the
-// smaller package wins. Levels 1 and 2 tie (their order flips between runs); level 2 stores 2 % less
-// than level 1 and 1.7-1.9 % more than level 3, whose double-fast matcher (level 2: zstd's fast one)
-// costs a slower convert (chunks stage 0.077 s against 0.087 s on FlightHelmet, 0.171 s against
-// 0.189 s on forest-2k, one thread) and pays off only after about 12 reads of the whole package from
-// that disk. Levels 6 and 9 store 11-14 % less at 1.5-2.3x level 2's chunks stage.
-inline constexpr int kDefaultZstdLevel = 2;
+// faster convert wins (the convert has its own bound: at most 3x an Embree HIGH build). Levels 1 and 2
+// tie (their order flips between runs); level 1 (zstd 1.5's fast matcher with a 2^14-entry hash table;
+// level 2 the same matcher with 2^16, level 3 double-fast) converts 3 % faster over the two scenes
+// (0.203 against 0.210 s, one thread; FlightHelmet's leaf-block chunks 8.8 against 10.8 ms, forest-1m's
+// 340 MB of chunks 1.02 against 1.28 s) and stores 2.0 % more. Levels 6 and 9 store 11-14 % less at
+// 1.7-2.5x level 1's chunks stage.
+inline constexpr int kDefaultZstdLevel = 1;
 // zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
 // choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
 // sequence to decode. On unique-50m's batching points (232 MB, one thread, raw literals): 5 → ratio
