@@ -258,6 +258,64 @@ TEST(TracePackets, SignedPermutationInstancesMovePacketsByTheirAxes) {
   }
 }
 
+// A packet through one instance scaled by 2^-100 (L^-1 = 2^100): lanes whose local direction or origin
+// leaves float range are misses for single rays (transform_ray refuses them) and must be for the
+// packet's four-lanes-at-once move too (InstanceMove4, ray_prep.h), beside lanes in range that hit.
+// A lane moved with an infinite direction would hit at t = 0 (den = inf): the range test is what keeps
+// the answers equal.
+TEST(TracePackets, MovedLanesOutOfFloatRangeAreMissesAsForSingleRays) {
+  if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
+  Scene s;
+  s.meshes.push_back(make_icosphere(3));
+  Instance tiny;
+  const double scale = std::ldexp(1.0, -100);
+  for (int a = 0; a < 3; ++a) tiny.transform(a, a) = scale;
+  tiny.transform(0, 3) = 3 * scale;  // moved too: not the identity, not a signed permutation
+  s.instances.push_back(tiny);
+  s.bounds = Aabb{};
+  for (uint32_t v : s.meshes[0].indices) s.bounds.grow(tiny.transform.apply(to_d(s.meshes[0].positions[v])));
+  const InCoreScene<8, 8> bvh = InCoreScene<8, 8>::build(s);
+  const SceneView<8, 8> view = bvh.view();
+  ASSERT_TRUE(fmt::ChildRef::is_leaf(view.top_root));
+  ASSERT_NE(view.moves, nullptr);
+  ASSERT_EQ(view.moves[0].kind, AxisMove::kGeneral);
+  // Runs of 16 rays towards +z at the sphere: lane k aims at (3 + 0.05 (k % 4 - 1.5), 0.05 (k / 4 - 1.5)) in
+  // local units; every third lane has a direction of length 2^40 (local 2^140: beyond FLT_MAX), every
+  // fifth an origin 2^40 away along -z (local 2^140), the rest are in range.
+  std::vector<fmt::Ray> rays;
+  for (int run = 0; run < 64; ++run)
+    for (int k = 0; k < 16; ++k) {
+      const int i = run * 16 + k;
+      const float x = float((3 + 0.05 * (k % 4 - 1.5) + 0.001 * run) * scale), y = float(0.05 * (k / 4 - 1.5) * scale);
+      const bool long_dir = i % 3 == 0, far_org = i % 5 == 0;
+      const float z = far_org ? -float(std::ldexp(1.0, 40)) : float(-4 * scale);
+      const float len = long_dir ? float(std::ldexp(1.0, 40)) : 1.0f;
+      rays.push_back({{x, y, z}, 0.0f, {0.0f, 0.0f, len}, INFINITY});
+    }
+  for (Isa isa : simd_isas()) {
+    const Answers single = run<8, 8>(view, rays, {isa, TraversalOrder::kOctantStack, 0});
+    size_t hits = 0, out_of_range_hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const bool hit = single.hits[i].instance != fmt::Hit::kNone;
+      hits += hit;
+      out_of_range_hits += hit && (i % 3 == 0 || i % 5 == 0);
+    }
+    EXPECT_GT(hits, rays.size() / 3) << "the in-range lanes hit the sphere";
+    EXPECT_EQ(out_of_range_hits, 0u) << "transform_ray refuses local rays beyond float range";
+    for (uint32_t p : {4u, 8u, 16u}) {
+      const std::string path = std::string(isa_name(isa)) + " packets of " + std::to_string(p);
+      const Answers got = run<8, 8>(view, rays, {isa, TraversalOrder::kOctantStack, p});
+      EXPECT_GT(got.closest.packets, 0u) << path;
+      int bad = 0;
+      for (size_t i = 0; i < rays.size(); ++i)
+        if ((!same(got.hits[i], single.hits[i]) || got.occluded[i] != single.occluded[i]) && ++bad <= 5)
+          ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << single.hits[i].t << ", occluded "
+                        << int(got.occluded[i]) << " vs " << int(single.occluded[i]);
+      EXPECT_EQ(bad, 0) << path;
+    }
+  }
+}
+
 // Packets of 16 whose rays point into different octants, or carry NaN, tnear > tfar, zero and
 // axis-parallel directions: the first valid ray's octant forms the packet, the others go alone.
 TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {

@@ -10,6 +10,7 @@
 
 #include <cfloat>
 #include <cmath>
+#include <cstddef>
 
 #include "formats/bvh_layout.h"
 #include "formats/ray_file.h"
@@ -140,6 +141,79 @@ struct InstanceMove {
     _mm_store_ps(fd, fdv);
     for (int r = 0; r < 3; ++r) out_org[r] = fo[r], out_dir[r] = fd[r];
     return (_mm_movemask_ps(_mm_cmpneq_ps(fdv, _mm_setzero_ps())) & 7) != 0;  // direction_usable
+  }
+};
+
+// InstanceMove::apply and setup_box_ray for four rays at once, the rays in SoA: L^-1's entries and T
+// broadcast, lane k of every vector is ray k (issue 11: a packet through a moved instance spent ≈100
+// instructions per lane moving its rays one at a time — the transpose, the permutes, the scalar
+// stores). Row r is (m[3r]·x + m[3r+1]·y) + m[3r+2]·z in double as in apply(), the same products and sums
+// in the same order, then rounded to float; the reciprocals are one IEEE division as in setup_box_ray.
+// So every lane gets apply's and setup_box_ray's bits.
+struct InstanceMove4 {
+  __m256d m[9], t[3];
+  RTP_KERNEL_INLINE explicit InstanceMove4(const fmt::InstanceRecord& inst) {
+    for (int k = 0; k < 9; ++k) m[k] = _mm256_set1_pd(double(inst.inverse_linear[k]));
+    for (int a = 0; a < 3; ++a) t[a] = _mm256_set1_pd(inst.translation[a]);
+  }
+  // Moves rays[0..3] into org[0..3], dir[0..3] (rows of 4 floats, the 4th is 0) and box[0..3]. Bit k of
+  // the result: ray k's local form is in float range with a usable direction (apply() returned true); the
+  // rows of the others are not to be read.
+  RTP_KERNEL_INLINE uint32_t apply(const fmt::Ray* rays, float (*org)[4], float (*dir)[4], detail::BoxRay* box) const {
+    // fmt::Ray is {org[3], tnear, dir[3], tfar}: two rows of four per ray, transposed to SoA.
+    __m128 o0 = _mm_loadu_ps(rays[0].org), o1 = _mm_loadu_ps(rays[1].org);
+    __m128 o2 = _mm_loadu_ps(rays[2].org), tn = _mm_loadu_ps(rays[3].org);
+    _MM_TRANSPOSE4_PS(o0, o1, o2, tn);  // o0..o2: x, y, z of the four rays; tn: their tnear
+    __m128 d0 = _mm_loadu_ps(rays[0].dir), d1 = _mm_loadu_ps(rays[1].dir);
+    __m128 d2 = _mm_loadu_ps(rays[2].dir), tf = _mm_loadu_ps(rays[3].dir);
+    _MM_TRANSPOSE4_PS(d0, d1, d2, tf);
+    const __m256d rx = _mm256_sub_pd(_mm256_cvtps_pd(o0), t[0]), ry = _mm256_sub_pd(_mm256_cvtps_pd(o1), t[1]),
+                  rz = _mm256_sub_pd(_mm256_cvtps_pd(o2), t[2]);
+    const __m256d dx = _mm256_cvtps_pd(d0), dy = _mm256_cvtps_pd(d1), dz = _mm256_cvtps_pd(d2);
+    const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    const __m256d limit = _mm256_set1_pd(double(FLT_MAX));
+    __m256d in_range = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    __m128 fo[3], fd[3];
+    for (int r = 0; r < 3; ++r) {
+      const __m256d o = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(m[3 * r], rx), _mm256_mul_pd(m[3 * r + 1], ry)),
+                                      _mm256_mul_pd(m[3 * r + 2], rz));
+      const __m256d v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(m[3 * r], dx), _mm256_mul_pd(m[3 * r + 1], dy)),
+                                      _mm256_mul_pd(m[3 * r + 2], dz));
+      in_range = _mm256_and_pd(in_range, _mm256_cmp_pd(_mm256_and_pd(o, abs_mask), limit, _CMP_LE_OQ));
+      in_range = _mm256_and_pd(in_range, _mm256_cmp_pd(_mm256_and_pd(v, abs_mask), limit, _CMP_LE_OQ));
+      fo[r] = _mm256_cvtpd_ps(o);
+      fd[r] = _mm256_cvtpd_ps(v);
+    }
+    const __m128 zero = _mm_setzero_ps();
+    const int usable = _mm_movemask_ps(_mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(fd[0], zero), _mm_cmpneq_ps(fd[1], zero)),
+                                                 _mm_cmpneq_ps(fd[2], zero)));
+    const uint32_t ok = uint32_t(_mm256_movemask_pd(in_range) & usable);
+    const __m128 one = _mm_set1_ps(1.0f);
+    __m128 rcp0 = _mm_div_ps(one, fd[0]), rcp1 = _mm_div_ps(one, fd[1]), rcp2 = _mm_div_ps(one, fd[2]);
+    // setup_box_ray's octant, sign bit a of dir[a], and tnear: the fourth column of each row of rcp.
+    const __m128i sign0 = _mm_srli_epi32(_mm_castps_si128(fd[0]), 31);
+    const __m128i sign1 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(fd[1]), 31), 1);
+    const __m128i sign2 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(fd[2]), 31), 2);
+    alignas(16) uint32_t octant[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(octant), _mm_or_si128(_mm_or_si128(sign0, sign1), sign2));
+    __m128 ox = fo[0], oy = fo[1], oz = fo[2], ow = zero;
+    __m128 vx = fd[0], vy = fd[1], vz = fd[2], vw = zero;
+    __m128 tnear = tn;
+    _MM_TRANSPOSE4_PS(ox, oy, oz, ow);  // rows: ray 0..3's (x, y, z, 0)
+    _MM_TRANSPOSE4_PS(vx, vy, vz, vw);
+    _MM_TRANSPOSE4_PS(rcp0, rcp1, rcp2, tnear);  // rows: ray 0..3's (1/x, 1/y, 1/z, tnear)
+    const __m128 orow[4] = {ox, oy, oz, ow}, vrow[4] = {vx, vy, vz, vw}, rrow[4] = {rcp0, rcp1, rcp2, tnear};
+    static_assert(offsetof(detail::BoxRay, rcp) == 12 && offsetof(detail::BoxRay, tnear) == 24 &&
+                  offsetof(detail::BoxRay, octant) == 28 && sizeof(detail::BoxRay) == 32);
+    for (int k = 0; k < 4; ++k) {
+      _mm_storeu_ps(org[k], orow[k]);
+      _mm_storeu_ps(dir[k], vrow[k]);
+      float* b = reinterpret_cast<float*>(&box[k]);
+      _mm_storeu_ps(b, orow[k]);      // org, then rcp[0] (written next)
+      _mm_storeu_ps(b + 3, rrow[k]);  // rcp, tnear
+      box[k].octant = uint8_t(octant[k]);
+    }
+    return ok;
   }
 };
 #endif

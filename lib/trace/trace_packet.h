@@ -155,7 +155,18 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
       // the double transform and a division per lane). Same bits as the general transform (scene_view.h);
       // a lane with a zero component takes the general path.
       const bool by_axes = s.moves && s.moves[id].kind == AxisMove::kAxes;
-      for (uint32_t m = rays & L.live; m; m &= m - 1) {
+      if (!by_axes) {
+        // Four consecutive lanes at a time, the same bits as move.apply and setup_box_ray lane by lane;
+        // a lane outside `rays` is moved too (every lane holds a ray) and not taken.
+        static_assert(P % 4 == 0);
+        const InstanceMove4 move4(s.instances[id]);
+        const uint32_t want = rays & L.live;
+        for (int g = 0; g < P; g += 4) {
+          const uint32_t sub = (want >> g) & 0xFu;
+          if (sub) in |= (move4.apply(L.ray + g, org + g, dir + g, box + g) & sub) << g;
+        }
+      }
+      for (uint32_t m = by_axes ? rays & L.live : 0u; m; m &= m - 1) {
         const int lane = lowest_bit(m);
         if (by_axes) {
           const AxisMoveResult r =
