@@ -344,6 +344,8 @@ TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {
     }
   }
   rays.resize(rays.size() - 5);  // a last, short packet
+  // ... ending in an invalid ray, which its lanes past the end repeat: counted once.
+  rays.back().org[1] = NAN, ++expect_invalid;
   for (Isa isa : simd_isas()) {
     const Answers single = run<8, 8>(bvh.view(), rays, {isa, TraversalOrder::kOctantStack, 0});
     size_t hit = 0;
