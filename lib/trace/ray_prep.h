@@ -148,8 +148,9 @@ struct InstanceMove {
 // packet's lanes were set up one by one, ≈40 instructions each): the same compares, one IEEE division
 // per axis and the sign bits for the octant, so each valid lane's BoxRay has setup_box_ray's bits (the
 // boxes of invalid lanes are not to be read). Returns bit k: ray k is valid with a usable direction;
-// *invalid gets bit k for a ray that is not valid.
-RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid) {
+// *invalid gets bit k for a ray that is not valid; octants[k] = box[k].octant.
+RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid,
+                                            uint8_t octants[4]) {
   __m128 o0 = _mm_loadu_ps(rays[0].org), o1 = _mm_loadu_ps(rays[1].org);
   __m128 o2 = _mm_loadu_ps(rays[2].org), tn = _mm_loadu_ps(rays[3].org);
   _MM_TRANSPOSE4_PS(o0, o1, o2, tn);
@@ -182,7 +183,7 @@ RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay*
     float* b = reinterpret_cast<float*>(&box[k]);
     _mm_storeu_ps(b, orow[k]);      // org, then rcp[0] (written next)
     _mm_storeu_ps(b + 3, rrow[k]);  // rcp, tnear
-    box[k].octant = uint8_t(octant[k]);
+    box[k].octant = octants[k] = uint8_t(octant[k]);
   }
   *invalid = uint32_t(~valid & 0xF);
   return uint32_t(valid & usable);

@@ -6,6 +6,7 @@
 // take (invalid, another octant, an infinite reciprocal the packet's others lack, a stack overflow)
 // is traced alone.
 #include <algorithm>
+#include <cstring>
 #include <type_traits>
 
 #include "trace/packet.h"
@@ -213,26 +214,30 @@ inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* 
   };
   for (size_t base = 0; base < n; base += P) {
     const int count = int(std::min<size_t>(P, n - base));
-    for (int i = 0; i < P; ++i) {
-      L.ray[i] = rays[base + std::min(i, count - 1)];  // lanes past the end copy the last ray, unused
-      reset(i);
+    if (count == P) {
+      std::memcpy(L.ray, rays + base, sizeof L.ray);
+    } else {
+      for (int i = 0; i < P; ++i) L.ray[i] = rays[base + std::min(i, count - 1)];  // lanes past the end copy the last ray
     }
-    // ray_is_valid, direction_usable and setup_box_ray four lanes at a time (the same bits).
-    static_assert(P % 4 == 0);
-    const uint32_t present = count == 32 ? ~0u : (1u << count) - 1;
+    for (int i = 0; i < P; ++i) reset(i);
+    // ray_is_valid, direction_usable and setup_box_ray four lanes at a time (the same bits), and the
+    // lanes of the first valid ray's octant by one byte compare.
+    static_assert(P % 4 == 0 && P <= 16);
+    const uint32_t present = (1u << count) - 1;
     uint32_t valid = 0, invalid = 0;
+    alignas(16) uint8_t octants[16] = {};
     for (int g = 0; g < P; g += 4) {
       uint32_t bad = 0;
-      valid |= setup_box_rays4(L.ray + g, L.world + g, &bad) << g;
+      valid |= setup_box_rays4(L.ray + g, L.world + g, &bad, octants + g) << g;
       invalid |= bad << g;
     }
     valid &= present;
     stats.invalid_rays += uint64_t(bit_count(invalid & present));
     uint32_t packet = 0;
     if (valid) {
-      const uint8_t octant = L.world[lowest_bit(valid)].octant;
-      for (uint32_t m = valid; m; m &= m - 1)
-        if (L.world[lowest_bit(m)].octant == octant) packet |= 1u << lowest_bit(m);
+      const __m128i all = _mm_load_si128(reinterpret_cast<const __m128i*>(octants));
+      const __m128i first = _mm_set1_epi8(char(octants[lowest_bit(valid)]));
+      packet = uint32_t(_mm_movemask_epi8(_mm_cmpeq_epi8(all, first))) & valid;
       if (bit_count(packet) < kPacketMinActive) packet = 0;
     }
     L.live = packet, L.stopped = 0, L.overflow = 0;
@@ -250,16 +255,15 @@ inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* 
       const int i = lowest_bit(m);
       L.finish(i, trace_one<K, kOct>(s, L.ray[i], L.sink[i]));
     }
+    stats.overflow_rays += uint64_t(bit_count(L.overflow & present));
     for (int i = 0; i < count; ++i) {
-      const bool over = (L.overflow >> i) & 1u;
-      if (over) ++stats.overflow_rays;
       if constexpr (kAny) {
         occluded[base + i] = ((L.stopped >> i) & 1u) ? 1 : 0;
-      } else if (over || L.sink[i].best.instance == fmt::Hit::kNone) {
-        hits[base + i] = {INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f};
       } else {
         const Closest& b = L.sink[i].best;
-        hits[base + i] = {b.t, b.instance, b.prim, b.u, b.v};
+        const bool miss = ((L.overflow >> i) & 1u) || b.instance == fmt::Hit::kNone;
+        hits[base + i] = miss ? fmt::Hit{INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f}
+                              : fmt::Hit{b.t, b.instance, b.prim, b.u, b.v};
       }
     }
   }
