@@ -144,47 +144,71 @@ struct InstanceMove {
   }
 };
 
-// ray_is_valid, direction_usable and setup_box_ray for four world rays at once, in SoA (issue 11: a
-// packet's lanes were set up one by one, ≈40 instructions each): the same compares, one IEEE division
-// per axis and the sign bits for the octant, so each valid lane's BoxRay has setup_box_ray's bits (the
-// boxes of invalid lanes are not to be read). Returns bit k: ray k is valid with a usable direction;
-// *invalid gets bit k for a ray that is not valid; octants[k] = box[k].octant.
-RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid,
-                                            uint8_t octants[4]) {
-  __m128 o0 = _mm_loadu_ps(rays[0].org), o1 = _mm_loadu_ps(rays[1].org);
-  __m128 o2 = _mm_loadu_ps(rays[2].org), tn = _mm_loadu_ps(rays[3].org);
-  _MM_TRANSPOSE4_PS(o0, o1, o2, tn);
-  __m128 d0 = _mm_loadu_ps(rays[0].dir), d1 = _mm_loadu_ps(rays[1].dir);
-  __m128 d2 = _mm_loadu_ps(rays[2].dir), tf = _mm_loadu_ps(rays[3].dir);
-  _MM_TRANSPOSE4_PS(d0, d1, d2, tf);
-  const __m128 zero = _mm_setzero_ps();
-  // ray_is_valid: x - x == 0 exactly for finite x; tnear <= tfar and tnear < inf (NaN fails both).
-  __m128 ok = _mm_and_ps(_mm_cmpeq_ps(_mm_sub_ps(o0, o0), zero), _mm_cmpeq_ps(_mm_sub_ps(o1, o1), zero));
-  ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmpeq_ps(_mm_sub_ps(o2, o2), zero), _mm_cmpeq_ps(_mm_sub_ps(d0, d0), zero)));
-  ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmpeq_ps(_mm_sub_ps(d1, d1), zero), _mm_cmpeq_ps(_mm_sub_ps(d2, d2), zero)));
-  ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmple_ps(tn, tf), _mm_cmplt_ps(tn, _mm_set1_ps(INFINITY))));
-  const int valid = _mm_movemask_ps(ok);
-  const int usable = _mm_movemask_ps(
-      _mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(d0, zero), _mm_cmpneq_ps(d1, zero)), _mm_cmpneq_ps(d2, zero)));
-  const __m128 one = _mm_set1_ps(1.0f);
-  __m128 rcp0 = _mm_div_ps(one, d0), rcp1 = _mm_div_ps(one, d1), rcp2 = _mm_div_ps(one, d2);
-  const __m128i octant_v = _mm_or_si128(
-      _mm_or_si128(_mm_srli_epi32(_mm_castps_si128(d0), 31), _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(d1), 31), 1)),
-      _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(d2), 31), 2));
+// Four fmt::Rays ({org[3], tnear, dir[3], tfar}: two rows of four each) transposed to SoA: lane k of
+// every vector is ray k.
+struct Rays4 {
+  __m128 o[3], tnear, d[3], tfar;
+};
+RTP_KERNEL_INLINE Rays4 load_rays4(const fmt::Ray* rays) {
+  Rays4 r;
+  r.o[0] = _mm_loadu_ps(rays[0].org), r.o[1] = _mm_loadu_ps(rays[1].org);
+  r.o[2] = _mm_loadu_ps(rays[2].org), r.tnear = _mm_loadu_ps(rays[3].org);
+  _MM_TRANSPOSE4_PS(r.o[0], r.o[1], r.o[2], r.tnear);
+  r.d[0] = _mm_loadu_ps(rays[0].dir), r.d[1] = _mm_loadu_ps(rays[1].dir);
+  r.d[2] = _mm_loadu_ps(rays[2].dir), r.tfar = _mm_loadu_ps(rays[3].dir);
+  _MM_TRANSPOSE4_PS(r.d[0], r.d[1], r.d[2], r.tfar);
+  return r;
+}
+
+// setup_box_ray for four rays given in SoA (origins o, directions d, tnear): one IEEE division per axis
+// and the sign bits for the octant, so each BoxRay gets setup_box_ray's bits. Also, when given, each
+// ray's octant into octants[k] and its origin and direction as rows (x, y, z, 0) into org[k], dir[k].
+RTP_KERNEL_INLINE void store_box_rays4(const __m128 o[3], const __m128 d[3], __m128 tnear, detail::BoxRay* box,
+                                       uint8_t* octants, float (*org)[4] = nullptr, float (*dir)[4] = nullptr) {
+  const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+  __m128 rcp0 = _mm_div_ps(one, d[0]), rcp1 = _mm_div_ps(one, d[1]), rcp2 = _mm_div_ps(one, d[2]);
+  const __m128i sign0 = _mm_srli_epi32(_mm_castps_si128(d[0]), 31);
+  const __m128i sign1 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(d[1]), 31), 1);
+  const __m128i sign2 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(d[2]), 31), 2);
   alignas(16) uint32_t octant[4];
-  _mm_store_si128(reinterpret_cast<__m128i*>(octant), octant_v);
-  __m128 ow = zero;
-  _MM_TRANSPOSE4_PS(o0, o1, o2, ow);  // rows: ray 0..3's (x, y, z, 0)
-  _MM_TRANSPOSE4_PS(rcp0, rcp1, rcp2, tn);  // rows: ray 0..3's (1/x, 1/y, 1/z, tnear)
-  const __m128 orow[4] = {o0, o1, o2, ow}, rrow[4] = {rcp0, rcp1, rcp2, tn};
+  _mm_store_si128(reinterpret_cast<__m128i*>(octant), _mm_or_si128(_mm_or_si128(sign0, sign1), sign2));
+  __m128 ox = o[0], oy = o[1], oz = o[2], ow = zero;
+  __m128 vx = d[0], vy = d[1], vz = d[2], vw = zero;
+  _MM_TRANSPOSE4_PS(ox, oy, oz, ow);           // rows: ray 0..3's (x, y, z, 0)
+  _MM_TRANSPOSE4_PS(vx, vy, vz, vw);
+  _MM_TRANSPOSE4_PS(rcp0, rcp1, rcp2, tnear);  // rows: ray 0..3's (1/x, 1/y, 1/z, tnear)
+  const __m128 orow[4] = {ox, oy, oz, ow}, vrow[4] = {vx, vy, vz, vw}, rrow[4] = {rcp0, rcp1, rcp2, tnear};
   static_assert(offsetof(detail::BoxRay, rcp) == 12 && offsetof(detail::BoxRay, tnear) == 24 &&
                 offsetof(detail::BoxRay, octant) == 28 && sizeof(detail::BoxRay) == 32);
   for (int k = 0; k < 4; ++k) {
     float* b = reinterpret_cast<float*>(&box[k]);
     _mm_storeu_ps(b, orow[k]);      // org, then rcp[0] (written next)
     _mm_storeu_ps(b + 3, rrow[k]);  // rcp, tnear
-    box[k].octant = octants[k] = uint8_t(octant[k]);
+    box[k].octant = uint8_t(octant[k]);
+    if (octants) octants[k] = uint8_t(octant[k]);
+    if (org) _mm_storeu_ps(org[k], orow[k]);
+    if (dir) _mm_storeu_ps(dir[k], vrow[k]);
   }
+}
+
+// ray_is_valid, direction_usable and setup_box_ray for four world rays at once, in SoA (issue 11: a
+// packet's lanes were set up one by one, ≈40 instructions each): the same compares, and store_box_rays4,
+// so each valid lane's BoxRay has setup_box_ray's bits (the boxes of invalid lanes are not to be read).
+// Returns bit k: ray k is valid with a usable direction; *invalid gets bit k for a ray that is not
+// valid; octants[k] = box[k].octant.
+RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid,
+                                            uint8_t octants[4]) {
+  const Rays4 r = load_rays4(rays);
+  const __m128 zero = _mm_setzero_ps();
+  auto finite = [&](__m128 x) { return _mm_cmpeq_ps(_mm_sub_ps(x, x), zero); };  // x - x == 0 exactly
+  // ray_is_valid: every component finite; tnear <= tfar and tnear < inf (NaN fails both).
+  __m128 ok = _mm_and_ps(_mm_and_ps(finite(r.o[0]), finite(r.o[1])), _mm_and_ps(finite(r.o[2]), finite(r.d[0])));
+  ok = _mm_and_ps(ok, _mm_and_ps(finite(r.d[1]), finite(r.d[2])));
+  ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmple_ps(r.tnear, r.tfar), _mm_cmplt_ps(r.tnear, _mm_set1_ps(INFINITY))));
+  const int valid = _mm_movemask_ps(ok);
+  const int usable = _mm_movemask_ps(
+      _mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(r.d[0], zero), _mm_cmpneq_ps(r.d[1], zero)), _mm_cmpneq_ps(r.d[2], zero)));
+  store_box_rays4(r.o, r.d, r.tnear, box, octants);
   *invalid = uint32_t(~valid & 0xF);
   return uint32_t(valid & usable);
 }
@@ -205,16 +229,10 @@ struct InstanceMove4 {
   // the result: ray k's local form is in float range with a usable direction (apply() returned true); the
   // rows of the others are not to be read.
   RTP_KERNEL_INLINE uint32_t apply(const fmt::Ray* rays, float (*org)[4], float (*dir)[4], detail::BoxRay* box) const {
-    // fmt::Ray is {org[3], tnear, dir[3], tfar}: two rows of four per ray, transposed to SoA.
-    __m128 o0 = _mm_loadu_ps(rays[0].org), o1 = _mm_loadu_ps(rays[1].org);
-    __m128 o2 = _mm_loadu_ps(rays[2].org), tn = _mm_loadu_ps(rays[3].org);
-    _MM_TRANSPOSE4_PS(o0, o1, o2, tn);  // o0..o2: x, y, z of the four rays; tn: their tnear
-    __m128 d0 = _mm_loadu_ps(rays[0].dir), d1 = _mm_loadu_ps(rays[1].dir);
-    __m128 d2 = _mm_loadu_ps(rays[2].dir), tf = _mm_loadu_ps(rays[3].dir);
-    _MM_TRANSPOSE4_PS(d0, d1, d2, tf);
-    const __m256d rx = _mm256_sub_pd(_mm256_cvtps_pd(o0), t[0]), ry = _mm256_sub_pd(_mm256_cvtps_pd(o1), t[1]),
-                  rz = _mm256_sub_pd(_mm256_cvtps_pd(o2), t[2]);
-    const __m256d dx = _mm256_cvtps_pd(d0), dy = _mm256_cvtps_pd(d1), dz = _mm256_cvtps_pd(d2);
+    const Rays4 w = load_rays4(rays);
+    const __m256d rx = _mm256_sub_pd(_mm256_cvtps_pd(w.o[0]), t[0]), ry = _mm256_sub_pd(_mm256_cvtps_pd(w.o[1]), t[1]),
+                  rz = _mm256_sub_pd(_mm256_cvtps_pd(w.o[2]), t[2]);
+    const __m256d dx = _mm256_cvtps_pd(w.d[0]), dy = _mm256_cvtps_pd(w.d[1]), dz = _mm256_cvtps_pd(w.d[2]);
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     const __m256d limit = _mm256_set1_pd(double(FLT_MAX));
     __m256d in_range = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
@@ -232,33 +250,8 @@ struct InstanceMove4 {
     const __m128 zero = _mm_setzero_ps();
     const int usable = _mm_movemask_ps(_mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(fd[0], zero), _mm_cmpneq_ps(fd[1], zero)),
                                                  _mm_cmpneq_ps(fd[2], zero)));
-    const uint32_t ok = uint32_t(_mm256_movemask_pd(in_range) & usable);
-    const __m128 one = _mm_set1_ps(1.0f);
-    __m128 rcp0 = _mm_div_ps(one, fd[0]), rcp1 = _mm_div_ps(one, fd[1]), rcp2 = _mm_div_ps(one, fd[2]);
-    // setup_box_ray's octant, sign bit a of dir[a], and tnear: the fourth column of each row of rcp.
-    const __m128i sign0 = _mm_srli_epi32(_mm_castps_si128(fd[0]), 31);
-    const __m128i sign1 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(fd[1]), 31), 1);
-    const __m128i sign2 = _mm_slli_epi32(_mm_srli_epi32(_mm_castps_si128(fd[2]), 31), 2);
-    alignas(16) uint32_t octant[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(octant), _mm_or_si128(_mm_or_si128(sign0, sign1), sign2));
-    __m128 ox = fo[0], oy = fo[1], oz = fo[2], ow = zero;
-    __m128 vx = fd[0], vy = fd[1], vz = fd[2], vw = zero;
-    __m128 tnear = tn;
-    _MM_TRANSPOSE4_PS(ox, oy, oz, ow);  // rows: ray 0..3's (x, y, z, 0)
-    _MM_TRANSPOSE4_PS(vx, vy, vz, vw);
-    _MM_TRANSPOSE4_PS(rcp0, rcp1, rcp2, tnear);  // rows: ray 0..3's (1/x, 1/y, 1/z, tnear)
-    const __m128 orow[4] = {ox, oy, oz, ow}, vrow[4] = {vx, vy, vz, vw}, rrow[4] = {rcp0, rcp1, rcp2, tnear};
-    static_assert(offsetof(detail::BoxRay, rcp) == 12 && offsetof(detail::BoxRay, tnear) == 24 &&
-                  offsetof(detail::BoxRay, octant) == 28 && sizeof(detail::BoxRay) == 32);
-    for (int k = 0; k < 4; ++k) {
-      _mm_storeu_ps(org[k], orow[k]);
-      _mm_storeu_ps(dir[k], vrow[k]);
-      float* b = reinterpret_cast<float*>(&box[k]);
-      _mm_storeu_ps(b, orow[k]);      // org, then rcp[0] (written next)
-      _mm_storeu_ps(b + 3, rrow[k]);  // rcp, tnear
-      box[k].octant = uint8_t(octant[k]);
-    }
-    return ok;
+    store_box_rays4(fo, fd, w.tnear, box, nullptr, org, dir);
+    return uint32_t(_mm256_movemask_pd(in_range) & usable);
   }
 };
 #endif

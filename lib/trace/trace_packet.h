@@ -150,15 +150,26 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
       alignas(16) float org[P][4], dir[P][4];
       detail::BoxRay box[P];
       uint32_t in = 0;
-      const InstanceMove move(s.instances[id]);  // transform_ray's operands, once for the packet
       // An instance whose L^-1 is a signed permutation (BoomBox's and Lantern's nodes) moves each lane by
       // permuting its world ray, as instance_leaf_one does for single rays (issue 11: the packet path ran
       // the double transform and a division per lane). Same bits as the general transform (scene_view.h);
       // a lane with a zero component takes the general path.
-      const bool by_axes = s.moves && s.moves[id].kind == AxisMove::kAxes;
-      if (!by_axes) {
-        // Four consecutive lanes at a time, the same bits as move.apply and setup_box_ray lane by lane;
-        // a lane outside `rays` is moved too (every lane holds a ray) and not taken.
+      if (s.moves && s.moves[id].kind == AxisMove::kAxes) {
+        const InstanceMove move(s.instances[id]);  // transform_ray's operands, once for the packet
+        for (uint32_t m = rays & L.live; m; m &= m - 1) {
+          const int lane = lowest_bit(m);
+          const AxisMoveResult r =
+              move_ray_by_axes(s.instances[id], s.moves[id], L.ray[lane], L.world[lane], org[lane], dir[lane], &box[lane]);
+          if (r == AxisMoveResult::kSkip) continue;
+          if (r == AxisMoveResult::kGeneral) {
+            if (!move.apply(L.ray[lane].org, L.ray[lane].dir, org[lane], dir[lane])) continue;
+            setup_box_ray(org[lane], dir[lane], L.ray[lane].tnear, &box[lane]);
+          }
+          in |= 1u << lane;
+        }
+      } else {
+        // Four consecutive lanes at a time, the same bits as InstanceMove::apply and setup_box_ray lane by
+        // lane; a lane outside `rays` is moved too (every lane holds a ray) and not taken.
         static_assert(P % 4 == 0);
         const InstanceMove4 move4(s.instances[id]);
         const uint32_t want = rays & L.live;
@@ -166,21 +177,6 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
           const uint32_t sub = (want >> g) & 0xFu;
           if (sub) in |= (move4.apply(L.ray + g, org + g, dir + g, box + g) & sub) << g;
         }
-      }
-      for (uint32_t m = by_axes ? rays & L.live : 0u; m; m &= m - 1) {
-        const int lane = lowest_bit(m);
-        if (by_axes) {
-          const AxisMoveResult r =
-              move_ray_by_axes(s.instances[id], s.moves[id], L.ray[lane], L.world[lane], org[lane], dir[lane], &box[lane]);
-          if (r == AxisMoveResult::kSkip) continue;
-          if (r == AxisMoveResult::kMoved) {
-            in |= 1u << lane;
-            continue;
-          }
-        }
-        if (!move.apply(L.ray[lane].org, L.ray[lane].dir, org[lane], dir[lane])) continue;
-        setup_box_ray(org[lane], dir[lane], L.ray[lane].tnear, &box[lane]);
-        in |= 1u << lane;
       }
       if (in && packet_mesh<K>(s, id, in, org, dir, box, L, pc) == Walk::kOverflow) status = Walk::kOverflow;
     }
