@@ -209,13 +209,24 @@ TEST(BvhScene, DegenerateInstances) {
 
 TEST(BvhScene, MovedSceneKeepsValidViews) {
   const Scene scene = import_gltf((kSamples / "khronos/Lantern/glTF/Lantern.gltf").string());
-  InCoreScene<8, 8> a = InCoreScene<8, 8>::build(scene);
+  BuildOptions two_level;  // Lantern's parts would be merged in world space (test_trace_merged.cpp)
+  two_level.merge_instances = false;
+  InCoreScene<8, 8> a = InCoreScene<8, 8>::build(scene, two_level);
   const SceneView<8, 8> before = a.view();
   InCoreScene<8, 8> b = std::move(a);
   const SceneView<8, 8> after = b.view();
   EXPECT_EQ(before.top_nodes, after.top_nodes);
   EXPECT_EQ(before.meshes[0].nodes, after.meshes[0].nodes);
-  check_scene<8, 8>(scene, b, {}, "moved");
+  check_scene<8, 8>(scene, b, two_level, "moved");
+  // The merged build too: its parts table and merged mesh move with it.
+  InCoreScene<8, 8> c = InCoreScene<8, 8>::build(scene);
+  ASSERT_TRUE(c.flattened());
+  const SceneView<8, 8> c_before = c.view();
+  InCoreScene<8, 8> d = std::move(c);
+  const SceneView<8, 8> c_after = d.view();
+  EXPECT_EQ(c_before.meshes[3].nodes, c_after.meshes[3].nodes);
+  EXPECT_EQ(c_before.part_first, c_after.part_first);
+  EXPECT_EQ(c_before.direct, c_after.direct);
 }
 
 TEST(BvhScene, DeterministicForAnyThreadCount) {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
@@ -135,11 +136,18 @@ TEST(MergedIdentityInstances, OnlyIdentityInstancesOfTheirOwnMeshes) {
   EXPECT_TRUE((InCoreScene<8, 8>::build(base).merged()));
   EXPECT_TRUE((InCoreScene<4, 4>::build(base).merged()));
   Scene moved = base;
-  moved.instances[3].transform(0, 3) = 0.25;  // one instance translated
-  EXPECT_FALSE((InCoreScene<8, 8>::build(moved).merged()));
+  moved.instances[3].transform(0, 3) = 0.25;  // one instance translated: merged only in world space
+  BuildOptions local_only;
+  local_only.flatten_instances = false;
+  EXPECT_FALSE((InCoreScene<8, 8>::build(moved, local_only).merged()));
+  EXPECT_TRUE((InCoreScene<8, 8>::build(moved).flattened()));
+  EXPECT_FALSE((InCoreScene<8, 8>::build(base).flattened())) << "shared transforms merge in local space, exactly";
   Scene singular = base;
   for (Instance& in : singular.instances) in.transform(1, 1) = 0;  // shared, but no ray can enter it
   EXPECT_FALSE((InCoreScene<8, 8>::build(singular).merged()));
+  Scene one_singular = moved;
+  one_singular.instances[2].transform(1, 1) = 0;  // left out with a warning by the two-level build
+  EXPECT_FALSE((InCoreScene<8, 8>::build(one_singular).merged()));
   Scene shared = base;
   shared.instances[4].mesh = shared.instances[1].mesh;  // two instances of one mesh
   EXPECT_FALSE((InCoreScene<8, 8>::build(shared).merged()));
@@ -154,6 +162,99 @@ TEST(MergedIdentityInstances, OnlyIdentityInstancesOfTheirOwnMeshes) {
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("mesh " + std::to_string(bad.instances[0].mesh)), std::string::npos) << e.what();
   }
+}
+
+// Issue 11, instances each of its own mesh under different transforms (Lantern: three parts, each
+// translated, under a turned root) are merged in world space (BuildOptions::flatten_instances): the
+// vertices rounded once in world space, so answers are the two-level walk's up to that rounding. Every
+// ray must name the same instance and triangle at the same t (to 1e-5 of the scene's size), or be a
+// tie the rounding can move: two triangles at the same t, or a hit within 1e-4 of its triangle's edge.
+Scene lantern() {
+  const std::string path = RTP_SOURCE_DIR "/samples/khronos/Lantern/glTF/Lantern.gltf";
+  EXPECT_TRUE(std::filesystem::exists(path)) << "committed sample missing: " << path;
+  return import_gltf(path);
+}
+
+bool near_edge(const fmt::Hit& h) {
+  constexpr float kEps = 1e-4f;
+  return h.u <= kEps || h.v <= kEps || h.u + h.v >= 1.0f - kEps;
+}
+
+TEST(FlattenedInstances, LanternAnswersAsItsThreeParts) {
+  const Scene scene = lantern();
+  ASSERT_EQ(scene.instances.size(), 3u);
+  BuildOptions apart;
+  apart.merge_instances = false;
+  const InCoreScene<8, 8> flat = InCoreScene<8, 8>::build(scene);
+  const InCoreScene<8, 8> two_level = InCoreScene<8, 8>::build(scene, apart);
+  ASSERT_TRUE(flat.merged() && flat.flattened());
+  EXPECT_NE(flat.view().direct, kNoDirectInstance) << "the world-space merge is walked without the instance level";
+  EXPECT_EQ(flat.warnings(), two_level.warnings());
+  const std::vector<fmt::Ray> rays = rays_for(scene, two_level.view());
+  const PathResult a = check_all_paths<8, 8>(flat.view(), rays, "Lantern (flattened)");
+  const PathResult b = check_all_paths<8, 8>(two_level.view(), rays, "Lantern (two levels)");
+  const Aabb& w = scene.bounds;
+  const double size = std::max({w.hi.x - w.lo.x, w.hi.y - w.lo.y, w.hi.z - w.lo.z});
+  ASSERT_GT(size, 0);
+  std::set<uint32_t> named;
+  size_t same = 0, misses = 0, ties = 0, bad = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const fmt::Hit &x = a.hits[i], &y = b.hits[i];
+    const bool hx = x.instance != fmt::Hit::kNone, hy = y.instance != fmt::Hit::kNone;
+    if (hx) named.insert(x.instance);
+    const double dt = hx && hy ? std::fabs(double(x.t) - y.t) * std::sqrt(double(rays[i].dir[0]) * rays[i].dir[0] +
+                                                                    double(rays[i].dir[1]) * rays[i].dir[1] +
+                                                                    double(rays[i].dir[2]) * rays[i].dir[2])
+                               : 0;
+    bool ok;
+    if (!hx && !hy) {
+      ok = true;
+      ++misses;
+    } else if (hx && hy && x.instance == y.instance && x.prim == y.prim) {
+      ok = dt <= 1e-5 * size;
+      same += ok;
+    } else {
+      // A different triangle at the same distance, or a hit against a miss, only at an edge.
+      ok = hx && hy ? dt <= 1e-5 * size && (near_edge(x) || near_edge(y)) : (hx ? near_edge(x) : near_edge(y));
+      ties += ok;
+    }
+    if (!ok && ++bad <= 5)
+      ADD_FAILURE() << "ray " << i << ": flattened t " << x.t << " instance " << x.instance << " prim " << x.prim
+                    << " (u " << x.u << ", v " << x.v << "), two-level t " << y.t << " instance " << y.instance
+                    << " prim " << y.prim << " (u " << y.u << ", v " << y.v << ")";
+    // Any-hit: the same answer, or a tie at an edge (the closest-hit answers of the ray show it).
+    if (a.occluded[i] != b.occluded[i] && !(hx && near_edge(x)) && !(hy && near_edge(y)) && ++bad <= 5)
+      ADD_FAILURE() << "ray " << i << ": occluded " << int(a.occluded[i]) << " vs " << int(b.occluded[i]);
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_EQ(same + misses + ties, rays.size());
+  EXPECT_GE(same, rays.size() / 10) << "rays hit the lantern and agree in name";
+  EXPECT_LE(ties, rays.size() / 1000 + 1) << "ties are rare";
+  EXPECT_EQ(named, (std::set<uint32_t>{0, 1, 2})) << "hits name the lantern's three parts";
+}
+
+// A part far from the origin relative to its size (geospatial coordinates, as issue 11's accuracy
+// scene) would lose its shape in world-space floats: such scenes keep their two levels.
+TEST(FlattenedInstances, FarAndSmallPartsStayTwoLevel) {
+  const Scene base = lantern();
+  ASSERT_TRUE((InCoreScene<8, 8>::build(base).flattened()));
+  Scene far = base;
+  Affine3x4& t = far.instances[1].transform;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) t(r, c) *= 1e-3;
+  t(0, 3) = 3000000.3, t(1, 3) = -2000000.7, t(2, 3) = 1000000.1;
+  EXPECT_FALSE((InCoreScene<8, 8>::build(far).merged()));
+  Scene small = base;  // the part scaled to 1e-3 in place: now small for where it is
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) small.instances[1].transform(r, c) *= 1e-3;
+  EXPECT_FALSE((InCoreScene<8, 8>::build(small).merged()));
+  Scene near = base;  // scaled to 1e-3 about the origin, its place with it: as flattenable as before
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) near.instances[1].transform(r, c) *= 1e-3;
+  EXPECT_TRUE((InCoreScene<8, 8>::build(near).flattened()));
+  Scene shared = base;
+  shared.instances[2].mesh = shared.instances[0].mesh;  // a mesh placed twice is instanced, not copied
+  EXPECT_FALSE((InCoreScene<8, 8>::build(shared).merged()));
 }
 
 }}  // namespace

@@ -42,6 +42,13 @@ struct BuildOptions {
   // hits still name the original instance and triangle. Same answers bit for bit; false keeps one BVH
   // per mesh under an instance BVH.
   bool merge_instances = true;
+  // In core, with merge_instances: a scene of two or more instances each of a mesh of its own but under
+  // different transforms (Lantern's three parts; the usual glTF layout) is merged in world space: the
+  // vertices moved by their instance's transform (double, rounded once) under one identity instance,
+  // when that rounding costs no instance more than 2^-17 of its own extent (max |world coordinate| <=
+  // 128 x extent); hits still name the original instance and triangle. Answers may differ from the
+  // two-level walk's in the last bits of t, u, v (the vertices are rounded in world space, not local).
+  bool flatten_instances = true;
   // Parallelism (never changes the result): ranges of at least `task_threshold` primitives build
   // their two halves / their children as TBB tasks; ranges of at least `parallel_threshold` bin and
   // partition with parallel loops.
@@ -157,6 +164,8 @@ class InCoreScene {
   // mesh(mesh_count() - 1) is that BVH, the scene's own meshes have none, and instances() holds one
   // record more, the merged one (their shared transform).
   bool merged() const { return !part_first_.empty(); }
+  // True when merged in world space (BuildOptions::flatten_instances): the merged record is the identity.
+  bool flattened() const { return flattened_; }
 
  private:
   std::vector<MeshBvh<W, B>> meshes_;
@@ -166,7 +175,8 @@ class InCoreScene {
   std::vector<AxisMove> moves_;  // axis_moves(records_), for the view
   std::vector<std::string> warnings_;
   std::vector<uint32_t> part_first_, part_instance_;  // merged: SceneView::part_first / part_instance
-  static InCoreScene build_merged(const Scene& scene, const BuildOptions& options);
+  bool flattened_ = false;
+  static InCoreScene build_merged(const Scene& scene, const BuildOptions& options, bool flatten);
 };
 
 // ---- statistics (stats_table.cpp) ---------------------------------------------------------------

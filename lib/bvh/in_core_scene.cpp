@@ -2,6 +2,8 @@
 // over meshes, and a W-wide instance BVH over the world bounds of the instances.
 #include <oneapi/tbb/parallel_for.h>
 
+#include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstring>
 
@@ -68,7 +70,8 @@ bool same_move(const fmt::InstanceRecord& a, const fmt::InstanceRecord& b) {
 // instances whose records move a ray alike (all the identity, as FlightHelmet's six parts, or one
 // root transform over every mesh node), each of a mesh no other instance uses, the transform invertible,
 // every mesh well formed (else the per-mesh build names the bad one), between 1 and 2^31 - 1 triangles.
-bool mergeable(const Scene& scene) {
+// With `any_move`, the instances' records may differ, each invertible (flattenable checks the rest).
+bool mergeable(const Scene& scene, bool any_move = false) {
   if (scene.instances.size() < 2) return false;
   const fmt::InstanceRecord first = make_instance_record(scene.instances[0]);
   if (!record_invertible(first)) return false;
@@ -77,7 +80,8 @@ bool mergeable(const Scene& scene) {
   for (const Instance& in : scene.instances) {
     if (in.mesh >= scene.meshes.size() || used[in.mesh]) return false;
     used[in.mesh] = 1;
-    if (!same_move(make_instance_record(in), first)) return false;
+    const fmt::InstanceRecord rec = make_instance_record(in);
+    if (any_move ? !record_invertible(rec) : !same_move(rec, first)) return false;
     const Mesh& m = scene.meshes[in.mesh];
     if (m.indices.size() % 3 != 0) return false;
     for (uint32_t v : m.indices)
@@ -87,14 +91,55 @@ bool mergeable(const Scene& scene) {
   return triangles > 0 && triangles < (uint64_t(1) << 31);
 }
 
+// A vertex moved to world space as the flattened merge stores it: the instance's double transform,
+// rounded to float once.
+Vec3f to_world(const Affine3x4& t, const Vec3f& q) {
+  const double x = q.x, y = q.y, z = q.z;
+  return {static_cast<float>(t(0, 0) * x + t(0, 1) * y + t(0, 2) * z + t(0, 3)),
+          static_cast<float>(t(1, 0) * x + t(1, 1) * y + t(1, 2) * z + t(1, 3)),
+          static_cast<float>(t(2, 0) * x + t(2, 1) * y + t(2, 2) * z + t(2, 3))};
+}
+
+// Issue 11 (accuracy far from the origin): world-space float vertices are rounded to 2^-24 of their
+// magnitude; an instance far from the origin relative to its own size (geospatial coordinates, a
+// small part in a large scene) would lose its shape. Each instance with triangles must have
+// max |world coordinate| <= 128 x its world extent (rounding <= 2^-17 of the extent) and finite
+// float world coordinates; a mergeable(scene, true) scene is assumed.
+bool flattenable(const Scene& scene) {
+  for (const Instance& in : scene.instances) {
+    const Mesh& m = scene.meshes[in.mesh];
+    if (m.triangle_count() == 0) continue;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t v : m.indices) {
+      const Vec3f& q = m.positions[v];
+      for (int r = 0; r < 3; ++r) {
+        const Affine3x4& t = in.transform;
+        const double w = t(r, 0) * q.x + t(r, 1) * q.y + t(r, 2) * q.z + t(r, 3);
+        lo[r] = std::min(lo[r], w), hi[r] = std::max(hi[r], w);
+      }
+    }
+    double extent = 0, mag = 0;
+    for (int r = 0; r < 3; ++r) {
+      if (!(std::fabs(lo[r]) < double(FLT_MAX) && std::fabs(hi[r]) < double(FLT_MAX))) return false;
+      extent = std::max(extent, hi[r] - lo[r]);
+      mag = std::max({mag, std::fabs(lo[r]), std::fabs(hi[r])});
+    }
+    if (!(extent > 0) || mag > 128.0 * extent) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 template <int W, int B>
 InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOptions& options) {
   bvh::check_options(options);
   if (options.merge_instances && mergeable(scene)) {
-    InCoreScene merged = build_merged(scene, options);
+    InCoreScene merged = build_merged(scene, options, false);
     if (merged.merged()) return merged;  // else: world bounds out of range, named by the build below
+  } else if (options.merge_instances && options.flatten_instances && mergeable(scene, true) && flattenable(scene)) {
+    InCoreScene merged = build_merged(scene, options, true);
+    if (merged.merged()) return merged;
   }
   InCoreScene out;
   const size_t nm = scene.meshes.size();
@@ -139,13 +184,15 @@ InCoreScene<W, B> InCoreScene<W, B>::build(const Scene& scene, const BuildOption
   return out;
 }
 
-// The instances' meshes as one mesh in their shared local space, in instance order: one BVH, one more
-// record with the shared transform (the merged instance), and the parts table that
+// The instances' meshes as one mesh in their shared local space (with `flatten`: in world space, each
+// moved by its own transform), in instance order: one BVH, one more record with the shared transform
+// (flattened: the identity), the merged instance, and the parts table that
 // gives hits their original names (SceneView::part_first). Instances of meshes without triangles are
 // left out with the warning the per-mesh build gives.
 template <int W, int B>
-InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const BuildOptions& options) {
+InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const BuildOptions& options, bool flatten) {
   InCoreScene out;
+  out.flattened_ = flatten;
   const size_t nm = scene.meshes.size(), ni = scene.instances.size();
   Mesh merged;
   merged.name = "merged instances";
@@ -160,7 +207,10 @@ InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const Buil
     const uint32_t base = uint32_t(merged.positions.size());
     out.part_first_.push_back(uint32_t(merged.indices.size() / 3));
     out.part_instance_.push_back(uint32_t(i));
-    merged.positions.insert(merged.positions.end(), m.positions.begin(), m.positions.end());
+    if (flatten)
+      for (const Vec3f& q : m.positions) merged.positions.push_back(to_world(inst.transform, q));
+    else
+      merged.positions.insert(merged.positions.end(), m.positions.begin(), m.positions.end());
     for (uint32_t v : m.indices) merged.indices.push_back(base + v);
   }
   out.meshes_.resize(nm + 1);  // the scene's meshes (no BVH) and the merged one
@@ -169,6 +219,7 @@ InCoreScene<W, B> InCoreScene<W, B>::build_merged(const Scene& scene, const Buil
   for (const auto& m : out.meshes_) out.views_.push_back(m.view());
   Instance all = scene.instances[0];  // the transform every instance shares
   all.mesh = uint32_t(nm);
+  if (flatten) all.transform = Affine3x4{}, all.mirrored = false;  // the vertices are in world space
   out.records_.push_back(make_instance_record(all));
   out.moves_ = axis_moves(out.records_.data(), out.records_.size());
   // The instance BVH holds the merged instance alone: walked as any instance when the shared transform
