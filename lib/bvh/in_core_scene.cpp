@@ -92,12 +92,15 @@ bool mergeable(const Scene& scene, bool any_move = false) {
 }
 
 // A vertex moved to world space as the flattened merge stores it: the instance's double transform,
-// rounded to float once.
+// rounded to float once. flattenable() checked the vertices triangles use; a vertex no triangle uses
+// may leave float range (then ±inf or NaN, never an out-of-range conversion).
 Vec3f to_world(const Affine3x4& t, const Vec3f& q) {
   const double x = q.x, y = q.y, z = q.z;
-  return {static_cast<float>(t(0, 0) * x + t(0, 1) * y + t(0, 2) * z + t(0, 3)),
-          static_cast<float>(t(1, 0) * x + t(1, 1) * y + t(1, 2) * z + t(1, 3)),
-          static_cast<float>(t(2, 0) * x + t(2, 1) * y + t(2, 2) * z + t(2, 3))};
+  const auto f = [](double w) {
+    return std::fabs(w) <= double(FLT_MAX) ? static_cast<float>(w) : w > 0 ? INFINITY : w < 0 ? -INFINITY : NAN;
+  };
+  return {f(t(0, 0) * x + t(0, 1) * y + t(0, 2) * z + t(0, 3)), f(t(1, 0) * x + t(1, 1) * y + t(1, 2) * z + t(1, 3)),
+          f(t(2, 0) * x + t(2, 1) * y + t(2, 2) * z + t(2, 3))};
 }
 
 // Issue 11 (accuracy far from the origin): world-space float vertices are rounded to 2^-24 of their
