@@ -3,9 +3,7 @@
 // own namespace (RTP_ISA_NS), so code built with different -m flags never merges at link time.
 #include <cfloat>
 #include <cmath>
-#include <cstddef>
 #include <cstdint>
-#include <type_traits>
 
 #include "formats/bvh_layout.h"
 #include "trace/ray_setup.h"
@@ -99,48 +97,19 @@ enum class Walk { kDone, kStop, kOverflow };  // kStop: any-hit found
 
 // Starts loading every hit child: the whole of inner nodes (planes, child refs and octant orders, which
 // the visit reads right after its box test; issue 11: forest-2k random 1.43 -> 1.51 of Embree), and through
-// `leaf_addr(ref)` the first block of leaves. Most are visited soon, and the loads then overlap
+// `prefetch_leaf(ref)` the first block of leaves. Most are visited soon, and the loads then overlap
 // instead of each node waiting for its own cache misses.
-// Issue 11: the loop's leaf/inner/empty branches and its exit were half of a random ray's mispredicted
-// branches on DamagedHelmet (callgrind --branch-sim). The address is now selected arithmetically (both
-// kinds get the same lines; an empty child is never hit, its box being empty, and a prefetch never
-// faults), and the first two hit children are prefetched without a branch: where fewer are hit, the
-// node itself (in cache) is prefetched instead. A loop takes the third and further.
-// `leaf_addr` returns a typed pointer (its pointee's size is what a leaf's prefetch covers) or nullptr.
-template <int W, class LeafAddr>
+template <int W, class PrefetchLeaf>
 RTP_KERNEL_INLINE void prefetch_children(const fmt::WideNode<W>* nodes, const fmt::WideNode<W>& node, uint32_t mask,
-                                         LeafAddr&& leaf_addr) {
-  if constexpr (std::is_same_v<decltype(leaf_addr(0u)), std::nullptr_t>) {
-    // Leaves not prefetched (instance levels: the instance visit reads the record itself first).
-    for (uint32_t m = mask; m; m &= m - 1) {
-      const uint32_t ref = node.child[__builtin_ctz(m)];
-      if (fmt::ChildRef::is_leaf(ref) || fmt::ChildRef::is_empty(ref)) continue;
+                              PrefetchLeaf&& prefetch_leaf) {
+  for (uint32_t m = mask; m; m &= m - 1) {
+    const uint32_t ref = node.child[__builtin_ctz(m)];
+    if (fmt::ChildRef::is_leaf(ref)) {
+      prefetch_leaf(ref);
+    } else if (!fmt::ChildRef::is_empty(ref)) {
       const char* p = reinterpret_cast<const char*>(nodes + ref);
-      for (size_t off = 0; off < sizeof(fmt::WideNode<W>); off += 64) __builtin_prefetch(p + off);
+      for (int off = 0; off < 36 * W; off += 64) __builtin_prefetch(p + off);
     }
-  } else {
-    constexpr size_t kLeafBytes = sizeof(*leaf_addr(0u));
-    constexpr size_t kBytes = sizeof(fmt::WideNode<W>) > kLeafBytes ? sizeof(fmt::WideNode<W>) : kLeafBytes;
-    const uintptr_t self = reinterpret_cast<uintptr_t>(&node);
-    // The lowest child of m, or the node itself when m = 0 (the lane read is then W - 1's, not used).
-    const auto child_addr = [&](uint32_t m) __attribute__((always_inline)) {
-      const uint32_t ref = node.child[__builtin_ctz(m | (1u << (W - 1)))];
-      const uintptr_t inner = reinterpret_cast<uintptr_t>(nodes + (ref & fmt::ChildRef::kMaxNodes));
-      const uintptr_t leaf = reinterpret_cast<uintptr_t>(leaf_addr(ref));
-      const uintptr_t is_leaf = uintptr_t(0) - uintptr_t(ref >> 31);  // all ones for a leaf
-      const uintptr_t is_hit = uintptr_t(0) - uintptr_t(m != 0);
-      const uintptr_t a = (leaf & is_leaf) | (inner & ~is_leaf);
-      return reinterpret_cast<const char*>((a & is_hit) | (self & ~is_hit));
-    };
-    const auto lines = [&](const char* p) __attribute__((always_inline)) {
-      for (size_t off = 0; off < kBytes; off += 64) __builtin_prefetch(p + off);
-    };
-    uint32_t m = mask;
-    lines(child_addr(m));
-    m &= m - 1;  // 0 stays 0
-    lines(child_addr(m));
-    m &= m - 1;
-    for (; m; m &= m - 1) lines(child_addr(m));
   }
 }
 

@@ -133,8 +133,7 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
   Walk status = Walk::kDone;
   auto single = [&](uint32_t ref, int lane) {
     auto leaf = [&](uint32_t r) { return instance_leaf_one<K, kOct>(s, r, L.ray[lane], L.world[lane], L.sink[lane]); };
-    L.finish(lane, walk<kOct, K, W>(s.top_nodes, ref, L.world[lane], L.sink[lane].tfar(), leaf,
-                                    [](uint32_t) { return nullptr; }));
+    L.finish(lane, walk<kOct, K, W>(s.top_nodes, ref, L.world[lane], L.sink[lane].tfar(), leaf, [](uint32_t) {}));
     L.sync(lane);
   };
   auto leaf = [&](uint32_t ref, uint32_t rays) {

@@ -25,13 +25,13 @@ struct Closest {
   float u, v;
 };
 
-template <TraversalOrder O, class K, int W, class LeafFn, class LeafAddrFn>
+template <TraversalOrder O, class K, int W, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
-                 LeafFn&& leaf, LeafAddrFn&& leaf_addr) {
+                 LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   if constexpr (O == TraversalOrder::kOctantStack)
-    return walk_octant_stack<K, W>(nodes, root, ray, tfar, leaf, leaf_addr);
+    return walk_octant_stack<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
   else
-    return walk_active_list<K, W>(nodes, root, ray, tfar, leaf, leaf_addr);
+    return walk_active_list<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
 }
 
 // What a walk does with one leaf block's hits: keep the closest (ClosestSink), stop at any (AnySink), or
@@ -82,10 +82,11 @@ RTP_KERNEL_INLINE Walk walk_mesh_inline(const SceneView<W, B>& s, uint32_t id, u
     }
     return Walk::kDone;
   };
-  auto block_addr = [&](uint32_t leaf_ref) __attribute__((always_inline)) {
-    return mesh.blocks + fmt::ChildRef::first_block(leaf_ref);
+  auto prefetch_block = [&](uint32_t leaf_ref) __attribute__((always_inline)) {
+    const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
+    for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
   };
-  return walk<O, K, W>(mesh.nodes, root, box, sink.tfar(), block_leaf, block_addr);
+  return walk<O, K, W>(mesh.nodes, root, box, sink.tfar(), block_leaf, prefetch_block);
 }
 
 // The same, out of line: one copy per (ISA, order, W, B, sink) that every instance visit calls (issue 11:
@@ -173,7 +174,7 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
   }
   setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
   auto instance_leaf = [&](uint32_t ref) -> Walk { return instance_leaf_one<K, O>(s, ref, ray, world, sink); };
-  return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) { return nullptr; });
+  return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
 }
 
 template <class K, TraversalOrder O, bool kAny, int W, int B>

@@ -11,9 +11,9 @@ namespace rtp::RTP_ISA_NS {
 // shortens tfar, entries beyond it are compacted out in place (pruning).
 // The list is bounded: above kSoft entries the last entry is taken instead (depth first, which adds
 // at most W - 1 entries per level), so kCapacity below is never exceeded by a tree within kMaxDepth.
-template <class K, int W, class LeafFn, class LeafAddrFn>
+template <class K, int W, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk_active_list(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
-                             const float& tfar, LeafFn&& leaf, LeafAddrFn&& leaf_addr) {
+                             const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   constexpr int kSoft = 64;
   constexpr int kCapacity = kSoft + W + (W - 1) * detail::kMaxDepth + 1;
   uint32_t refs[kCapacity];
@@ -42,7 +42,7 @@ RTP_KERNEL_INLINE Walk walk_active_list(const fmt::WideNode<W>* nodes, uint32_t 
     } else if (!fmt::ChildRef::is_empty(cur)) {
       const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
       const uint32_t mask = K::template node<W>(node, node_ray, tfar, dist);
-      prefetch_children(nodes, node, mask, leaf_addr);
+      prefetch_children(nodes, node, mask, prefetch_leaf);
       if (n + bit_count(mask) > kCapacity) return Walk::kOverflow;
       for (uint32_t m = mask; m; m &= m - 1) {
         const int i = lowest_bit(m);

@@ -9,11 +9,10 @@ namespace rtp::RTP_ISA_NS {
 // Molenaar 2019 §4.1 (after Fuetterling 2017): hit children in node.order[octant] order, the nearest
 // taken next, the others pushed far to near with their entry distance; a popped entry whose distance
 // is beyond the (padded) current tfar is dropped. `tfar` is live: the leaf callback may shorten it.
-// leaf(ref) returns kDone to go on, kStop/kOverflow to end the walk with that status; leaf_addr(ref) is
-// the address of a leaf's first block, for prefetching (nullptr: leaves are not prefetched).
-template <class K, int W, class LeafFn, class LeafAddrFn>
+// leaf(ref) returns kDone to go on, kStop/kOverflow to end the walk with that status.
+template <class K, int W, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
-                              const float& tfar, LeafFn&& leaf, LeafAddrFn&& leaf_addr) {
+                              const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   struct Entry {
     uint32_t ref;
     float dist;
@@ -32,7 +31,7 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
     } else if (!fmt::ChildRef::is_empty(cur)) {
       const fmt::WideNode<W>& node = nodes[fmt::ChildRef::node_index(cur)];
       const uint32_t mask = K::template node<W>(node, node_ray, tfar, dist);
-      prefetch_children(nodes, node, mask, leaf_addr);
+      prefetch_children(nodes, node, mask, prefetch_leaf);
       const uint8_t* order = node.order[ray.octant];
       if (mask && !(mask & (mask - 1))) {  // one child hit: no order needed
         cur = node.child[lowest_bit(mask)];
