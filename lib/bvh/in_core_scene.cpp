@@ -95,12 +95,11 @@ bool mergeable(const Scene& scene, bool any_move = false) {
 // rounded to float once. flattenable() checked the vertices triangles use; a vertex no triangle uses
 // may leave float range (then ±inf or NaN, never an out-of-range conversion).
 Vec3f to_world(const Affine3x4& t, const Vec3f& q) {
-  const double x = q.x, y = q.y, z = q.z;
-  const auto f = [](double w) {
-    return std::fabs(w) <= double(FLT_MAX) ? static_cast<float>(w) : w > 0 ? INFINITY : w < 0 ? -INFINITY : NAN;
+  const Vec3d w = t.apply(to_d(q));
+  const auto f = [](double x) {
+    return std::fabs(x) <= double(FLT_MAX) ? static_cast<float>(x) : x > 0 ? INFINITY : x < 0 ? -INFINITY : NAN;
   };
-  return {f(t(0, 0) * x + t(0, 1) * y + t(0, 2) * z + t(0, 3)), f(t(1, 0) * x + t(1, 1) * y + t(1, 2) * z + t(1, 3)),
-          f(t(2, 0) * x + t(2, 1) * y + t(2, 2) * z + t(2, 3))};
+  return {f(w.x), f(w.y), f(w.z)};
 }
 
 // Issue 11 (accuracy far from the origin): world-space float vertices are rounded to 2^-24 of their
@@ -114,12 +113,8 @@ bool flattenable(const Scene& scene) {
     if (m.triangle_count() == 0) continue;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t v : m.indices) {
-      const Vec3f& q = m.positions[v];
-      for (int r = 0; r < 3; ++r) {
-        const Affine3x4& t = in.transform;
-        const double w = t(r, 0) * q.x + t(r, 1) * q.y + t(r, 2) * q.z + t(r, 3);
-        lo[r] = std::min(lo[r], w), hi[r] = std::max(hi[r], w);
-      }
+      const Vec3d w = in.transform.apply(to_d(m.positions[v]));
+      for (int r = 0; r < 3; ++r) lo[r] = std::min(lo[r], w[r]), hi[r] = std::max(hi[r], w[r]);
     }
     double extent = 0, mag = 0;
     for (int r = 0; r < 3; ++r) {
