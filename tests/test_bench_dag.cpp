@@ -88,6 +88,7 @@ TEST(BenchDag, RecordsAreCompleteAndConsistent) {
       EXPECT_GT(pool, 0u);
       EXPECT_GT(rec.at("package_bytes").get<uint64_t>(), pool);
       EXPECT_LE(rec.at("hits").get<uint64_t>(), 2000u);
+      EXPECT_GT(rec.at("hits").get<uint64_t>(), 0u) << "the rays must hit something";
       EXPECT_GT(rec.at("mrays_cull").get<double>(), 0.0);
       EXPECT_GT(rec.at("mrays_no_cull").get<double>(), 0.0);
     } else if (type == "dag_convert") {

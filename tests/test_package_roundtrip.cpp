@@ -203,6 +203,10 @@ TEST_F(Package, TraceFilesAgreeWithEmbree) {
     if (!far) {
       EXPECT_LE(rep.precision_ties, rays.size() / 100) << rep.details();
       EXPECT_GT(rep.both_hit, rays.size() / 10) << "the rays must actually hit something";
+    } else {  // every hit there is within float precision of Embree's (a precision tie): count rtpack's own
+      size_t hit = 0;
+      for (const fmt::Hit& h : hits) hit += h.instance != fmt::Hit::kNone;
+      EXPECT_GT(hit, rays.size() / 10) << "the rays must actually hit something";
     }
     const AnyHitReport any = check_any_hit(rays.data(), hits.data(), occ.data(), rays.size(), copt, skip.data());
     EXPECT_EQ(any.failures, 0u) << any.details();

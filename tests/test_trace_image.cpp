@@ -95,12 +95,19 @@ TEST_F(TraceImage, DepthFollowsTheHitDistance) {
   ASSERT_EQ(trace({gallery.string(), "--image", png.string(), "--size", "48x32", "--shade", "depth", "--hits", hits.string()}).code, 0);
   const auto h = read_records<fmt::Hit>(hits);
   const Png img = load_png(png);
+  ASSERT_EQ(h.size(), 48u * 32u);  // one hit record per pixel
   ASSERT_EQ(img.rgb.size(), h.size() * 3);
+  size_t hit_pixels = 0, distinct = 0;
+  for (size_t i = 0; i < h.size(); ++i) hit_pixels += h[i].instance != fmt::Hit::kNone;
   for (size_t i = 0; i < h.size(); ++i)
-    for (size_t j = 0; j < h.size(); ++j)
+    for (size_t j = 0; j < h.size(); ++j) {
+      if (h[i].instance != fmt::Hit::kNone && h[j].instance != fmt::Hit::kNone && img.rgb[i * 3] != img.rgb[j * 3]) ++distinct;
       if (h[i].instance != fmt::Hit::kNone && h[j].instance != fmt::Hit::kNone && h[i].t < h[j].t) {
         ASSERT_GE(img.rgb[i * 3], img.rgb[j * 3]) << "pixel " << i << " (t " << h[i].t << ") vs " << j << " (t " << h[j].t << ")";
       }
+    }
+  EXPECT_GT(hit_pixels, 10u) << "the camera must see the gallery";
+  EXPECT_GT(distinct, 0u) << "hit pixels of more than one shade: depth is drawn";
 }
 
 TEST_F(TraceImage, CamerasAndTheAutomaticOne) {
