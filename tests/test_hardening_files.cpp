@@ -217,6 +217,24 @@ TEST_F(HardeningFiles, MakeSceneRefusesToOverwriteItsMeshSource) {
   EXPECT_EQ(listing(out), std::set<std::string>{"g.glb"});
 }
 
+// A .gltf's external buffer is an input too: neither tool may replace it with its output (a user who
+// typed the .bin for the .rtp lost the model's geometry).
+TEST_F(HardeningFiles, ConvertAndMakeSceneRefuseToOverwriteABufferTheyRead) {
+  for (const char* f : {"Suzanne.gltf", "Suzanne.bin"})
+    fs::copy_file(fs::path(RTP_SOURCE_DIR) / "samples/khronos/Suzanne/glTF" / f, in / f);
+  const std::string gltf = (in / "Suzanne.gltf").string(), bin = (in / "Suzanne.bin").string();
+  const std::string before = slurp_file(bin);
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"rtpack-convert", "-q", gltf, "-o", bin},
+        std::vector<std::string>{"rtpack-make-scene", "gallery", "--count", "2", "--mesh", gltf, "-o", (in / "." / "Suzanne.bin").string()}}) {
+    const ToolResult r = tool(args[0], std::vector<std::string>(args.begin() + 1, args.end()));
+    EXPECT_EQ(r.code, 1) << args[0] << ": " << r.err;
+    EXPECT_NE(r.err.find("Suzanne.bin' (same device and inode)"), std::string::npos) << args[0] << ": " << r.err;
+    EXPECT_TRUE(slurp_file(bin) == before) << args[0] << ": the buffer changed";
+  }
+  EXPECT_EQ(tool("rtpack-convert", {"-q", gltf, "-o", (out / "s.rtp").string()}).code, 0);
+}
+
 TEST_F(HardeningFiles, TraceRefusesToOverwriteItsInputs) {
   const std::string p = package();
   const std::string pkg = slurp_file(p), rays = slurp_file(in / "rays.bin");

@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "scene/import.h"
 
 namespace rtp::tools {
@@ -39,7 +40,8 @@ std::string resolve_default(const std::string& rel) {
                                       "); pass your own with --mesh FILE.gltf, or set RTP_DATA_DIR to a directory holding samples/");
 }
 
-std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths) {
+std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths,
+                                     const std::string& output) {
   std::vector<SourceMesh> out;
   for (const std::string& file : files) {
     rtp::Scene scene;
@@ -52,6 +54,7 @@ std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, cons
     } catch (const std::exception& e) {
       throw Error(ExitCode::kInputIo, "cannot read mesh source '" + file + "': " + e.what());
     }
+    for (const std::string& b : scene.input.buffer_paths) rtp::check_not_same_file(b, output);  // nor its buffers
     const size_t before = out.size();
     for (size_t i = 0; i < scene.meshes.size(); ++i) {
       rtp::Mesh& m = scene.meshes[i];

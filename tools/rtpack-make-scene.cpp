@@ -431,7 +431,7 @@ int run(const Options& cli) {
 
   for (const std::string& f : files) rtp::check_not_same_file(f, o.output);
   rtp::check_output_path(o.output);  // before any work
-  std::vector<SourceMesh> meshes = load_sources(files, o.allow_paths);
+  std::vector<SourceMesh> meshes = load_sources(files, o.allow_paths, o.output);
   if (uint64_t(o.count) < meshes.size())
     throw Error(ExitCode::kUsage, "--count " + std::to_string(o.count) + " is below the number of source meshes (" +
                                       std::to_string(meshes.size()) + "); every mesh needs an instance");

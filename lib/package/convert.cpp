@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "core/progress.h"
 #include "core/utf8.h"
 #include "scene/import.h"
@@ -44,6 +45,8 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
   out.scene = import_gltf(s.input, opt);
   out.import_cost = cost_since(t0);
   Scene& scene = out.scene;
+  // The glTF itself is checked before any work (rtpack-convert); its external buffers are known now.
+  for (const std::string& b : scene.input.buffer_paths) check_not_same_file(b, s.output);
   for (const auto& [want, name] : {std::pair{opt.normals, "NORMAL"}, std::pair{opt.uvs, "TEXCOORD_0"}}) {
     bool any = false;
     for (const Mesh& m : scene.meshes) any |= !(name[0] == 'N' ? m.normals.empty() : m.uvs.empty());

@@ -308,6 +308,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
         approved[join_path(doc.base_dir, percent_decode(uri))] = Approved{p.string(), uint64_t(real)};
         doc.input.buffer_bytes += uint64_t(real);  // tinygltf reads each buffer's file (fs_read)
         ++doc.input.buffer_files;
+        doc.input.buffer_paths.push_back(p.string());
       }
       if (real >= 0 && uint64_t(real) < declared)
         fail_invalid(ptr + ": byteLength is " + std::to_string(declared) + " but only " + std::to_string(real) +

@@ -70,6 +70,7 @@ struct InputFiles {
   uint64_t gltf_bytes = 0;    // the .gltf or .glb file
   uint64_t buffer_bytes = 0;  // external .bin buffers read (data URIs and the .glb BIN chunk are in gltf_bytes)
   uint32_t buffer_files = 0;
+  std::vector<std::string> buffer_paths;  // the external buffer files read (an output must not replace one)
   uint32_t images = 0;             // glTF images (none is read)
   uint64_t image_file_bytes = 0;   // sizes of the external image files that exist (stat only)
   uint64_t read_bytes() const { return gltf_bytes + buffer_bytes; }
