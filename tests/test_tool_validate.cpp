@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -39,6 +40,32 @@ void convert_to(const std::string& in, const std::string& out, uint64_t points, 
   dry.dry_run = true;
   cs.chunk_target = std::max<uint64_t>(64, convert_scene(dry).scene.instanced_triangles() / points);
   convert_scene(cs);
+}
+
+// A glTF whose meshes have no triangles converts (with a warning) to an empty package: it passes
+// rtpack-inspect --verify, and rtpack-validate says there is nothing to trace (the header claimed culling
+// DAGs the package did not hold, and validate refused its own default "--memory-budget 25%").
+TEST(ValidateTool, AnEmptyPackageIsValidAndSaysSo) {
+  const fs::path dir = temp_dir("validate_empty");
+  const fs::path gltf = dir / "empty.gltf";
+  std::ofstream(gltf) << R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],)"
+                         R"("meshes":[{"primitives":[]}]})";
+  const std::string pkg = (dir / "empty.rtp").string();
+  const ToolResult c = run_tool("rtpack-convert", {gltf.string(), "-o", pkg}, dir);
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.err.find("no triangles"), std::string::npos) << c.err;
+  const ToolResult v = run_tool("rtpack-inspect", {"--verify", pkg}, dir);
+  EXPECT_EQ(v.code, 0) << v.out << v.err;
+  const ToolResult a = run_tool("rtpack-validate", {pkg}, dir);
+  EXPECT_EQ(a.code, 0) << a.out << a.err;
+  EXPECT_NE(a.out.find("the package holds no triangles"), std::string::npos) << a.out;
+  const ToolResult j = run_tool("rtpack-validate", {pkg, "--json"}, dir);
+  ASSERT_EQ(j.code, 0) << j.out << j.err;
+  const auto r = nlohmann::json::parse(j.out);
+  EXPECT_TRUE(r.contains("schema_version"));
+  EXPECT_TRUE(r["ok"].get<bool>());
+  EXPECT_EQ(r["failures"], 0);
+  EXPECT_TRUE(r["kinds"].empty());
 }
 
 TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {

@@ -186,6 +186,21 @@ int main(int argc, char** argv) {
                                                               : " without --source (primary, random, shadow)"));
       }
     }
+    if (reader.header().unique_triangles == 0) {  // a scene without triangles converts to a valid, empty package
+      const char* why = "the package holds no triangles: no ray can hit anything, nothing to validate";
+      if (json) {
+        nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
+        j["package"] = rtp::utf8_display(package);
+        j["kinds"] = nlohmann::json::array();
+        j["failures"] = 0;
+        j["ok"] = true;
+        j["note"] = why;
+        std::cout << j.dump(2) << "\n";
+      } else {
+        std::printf("%s\n", why);
+      }
+      return 0;
+    }
     const uint64_t on_demand = rtp::on_demand_bytes(reader), minimum = rtp::minimum_budget(reader);
     uint64_t budget = rtp::parse_memory_budget(budget_text, on_demand);
     if (app.count("--memory-budget") == 0) budget = std::max(budget, minimum);  // the default never refuses

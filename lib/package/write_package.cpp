@@ -432,7 +432,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
           }));
   rep.dag_pool_bytes = pool.bytes();
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
-  if (o.dag) header_flags |= fmt::kFlagDag;
+  if (o.dag && n_pts > 0) header_flags |= fmt::kFlagDag;  // no point, no grid and no pool (metadata "dag" alike)
   beside.wait();
   std::vector<Job> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
   std::vector<Job*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
