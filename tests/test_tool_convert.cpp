@@ -129,6 +129,26 @@ TEST_F(Convert, UsageErrors) {
   EXPECT_EQ(convert("--dry-run --scene 4 " + p, dir).code, 1);  // no such scene
   EXPECT_EQ(convert("--dry-run --subdivide 1 --subdivide-to 2 " + p, dir).code, 1);
   EXPECT_EQ(convert("--bogus " + p, dir).code, 1);
+  // Numbers: NaN and inf are refused (CLI11's ranges let NaN through: --subdivide-to nan was ignored), and
+  // the message says what was expected.
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--subdivide-to nan", "--subdivide-to: expected a positive number, got nan"},
+           {"--subdivide-to inf", "--subdivide-to: expected a positive number, got inf"},
+           {"--threads 0", "--threads: expected a positive number, got 0"},
+           {"--weld -1", "--weld: expected a number >= 0, got -1"},
+           {"--weld 1e400", "--weld: expected a number >= 0, got 1e400"},
+           {"--chunk-target x", "--chunk-target: expected a positive number, got 'x'"}}) {
+    const ToolRun r = convert("--dry-run " + args + " " + p, dir);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
+  }
+  const std::string make = std::string(RTP_BINARY_DIR) + "/rtpack-make-scene gallery --count 2 --spacing nan -o " +
+                           (dir / "g.glb").string() + " 2> " + (dir / "err").string();
+  const int status = std::system(make.c_str());
+  const ToolRun spacing{WIFEXITED(status) ? WEXITSTATUS(status) : -1, "", slurp(dir / "err")};
+  EXPECT_EQ(spacing.code, 1);
+  EXPECT_NE(spacing.err.find("--spacing: expected a number from 0.001 to 100000, got nan"), std::string::npos) << spacing.err;
+  EXPECT_FALSE(fs::exists(dir / "g.glb"));
 }
 
 TEST_F(Convert, WarningsGoToStderr) {

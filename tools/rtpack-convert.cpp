@@ -21,6 +21,7 @@
 #include "scene/import.h"
 #include "scene/summary.h"
 #include "malloc_policy.h"
+#include "cli_checks.h"
 #include "tool_version.h"
 
 namespace {
@@ -48,18 +49,18 @@ int main(int argc, char** argv) {
                "also analyse each mesh's half-edge topology with OpenMesh (faces it refuses, non-manifold vertices; "
                "report only, about an eighth of a convert's time)");
   app.add_flag("--json", json, "print the summary as JSON on stdout");
-  app.add_option("--scene", scene_index, "glTF scene index (default: the file's default scene)")->check(CLI::NonNegativeNumber);
-  app.add_option("--weld", weld, "weld vertices closer than EPS (L-inf, local units)")->check(CLI::NonNegativeNumber);
+  app.add_option("--scene", scene_index, "glTF scene index (default: the file's default scene)")->check(rtp::tools::non_negative());
+  app.add_option("--weld", weld, "weld vertices closer than EPS (L-inf, local units)")->check(rtp::tools::non_negative());
   auto* sub = app.add_option("--subdivide", subdivide, "uniform Loop subdivision levels")->check(CLI::Range(0, 8));
   app.add_option("--subdivide-to", subdivide_to, "refine each mesh until its longest world-space edge is below LENGTH")
-      ->check(CLI::PositiveNumber)->excludes(sub);
+      ->check(rtp::tools::positive())->excludes(sub);
   app.add_option("--bvh-width", width, "BVH width W: 4, 8 or 16 (default 8)")->check(CLI::IsMember({4, 8, 16}));
   app.add_option("--leaf-width", leaf_width, "triangles per leaf block B: 4, 8 or 16 (default W, 8 for W=16)")
       ->check(CLI::IsMember({4, 8, 16}));
   app.add_option("--bvh-build", build, "collapse (SAH collapse, default) or split (top-down W-way)")
       ->check(CLI::IsMember({"collapse", "split"}));
   app.add_option("--chunk-target", chunk_target, "triangles per batching point (default: derived from the scene)")
-      ->check(CLI::PositiveNumber);
+      ->check(rtp::tools::positive());
   app.add_option("--chunk-by", chunk_by, "count instanced (default) or unique triangles toward the target")
       ->check(CLI::IsMember({"instanced", "unique"}));
   app.add_option("--attributes", attributes,
@@ -79,7 +80,7 @@ int main(int argc, char** argv) {
                  "faster when tracing out of core; docs/package/zstd.md)")
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}));
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
-      ->check(CLI::PositiveNumber);
+      ->check(rtp::tools::positive());
   bool no_dag = false;
   uint32_t dag_resolution = 0;
   app.add_flag("--no-dag", no_dag, "store no occlusion-culling DAGs (smaller package, no culling)");

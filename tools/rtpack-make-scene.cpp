@@ -50,6 +50,7 @@
 #include "core/math.h"
 #include "scene/import.h"
 #include "make_scene_sources.h"
+#include "cli_checks.h"
 #include "tool_version.h"
 
 namespace {
@@ -490,7 +491,7 @@ int main(int argc, char** argv) {
                                      "forest: every instance its own mesh, a copy of its source with every vertex moved by "
                                      "a per-copy hash (unique geometry, no GPU instancing)");
   app.add_option("--spacing", o.spacing, "grid spacing; meshes are normalized to size 1 (default 2)")
-      ->check(CLI::Range(1e-3, 1e5));
+      ->check(rtp::tools::finite_range(1e-3, 1e5));
   app.add_option("--mesh", o.meshes, "source glTF file, repeatable (default: Suzanne, Lantern, BoomBox samples)")
       ->allow_extra_args(false);
   app.add_option("--allow-path", o.allow_paths, "also read --mesh files' external buffers from DIR (repeatable)");

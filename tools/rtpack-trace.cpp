@@ -29,6 +29,7 @@
 #include "trace/package_tracer.h"
 #include "trace/ray_file.h"
 #include "trace/tile_order.h"
+#include "cli_checks.h"
 #include "tool_version.h"
 
 namespace {
@@ -70,7 +71,7 @@ int main(int argc, char** argv) {
   app.add_option("--size", size, "image size WxH for --image (default 1280x720)");
   app.add_option("--camera", camera, "glTF camera index for --image and --make-camera-rays (default: the first, or an "
                                      "automatic camera framing the bounds when the package has none)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(rtp::tools::non_negative());
   app.add_option("--shade", shade_name, "--image colours: normal (default), depth or instance")
       ->check(CLI::IsMember({"normal", "depth", "instance"}));
   std::string shading_path;
@@ -83,7 +84,7 @@ int main(int argc, char** argv) {
                  "K: write the K closest hits of each ray (K hit records per ray, nearest first, then misses; SPEC §5), "
                  "K in 1..64")
       ->check(CLI::Range(1u, rtp::kMaxMultiHit));
-  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512")->check(CLI::IsMember({"best", "scalar", "avx2", "avx512"}));
   app.add_option("--order", order, "traversal order: octant (stack) or active (Benthin's active list)")
       ->check(CLI::IsMember({"octant", "active"}));

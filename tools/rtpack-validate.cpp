@@ -26,6 +26,7 @@
 #include "reader/metadata.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
+#include "cli_checks.h"
 #include "tool_version.h"
 
 namespace {
@@ -153,7 +154,7 @@ int main(int argc, char** argv) {
                                                  "a percentage of the package's on-demand bytes (default 25%, raised to the "
                                                  "package's minimum)");
   app.add_option("--seed", seed, "ray seed (default 1)");
-  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
   app.add_flag("--no-cull", no_cull, "do not cull with the batching points' DAGs");
   app.add_flag("--json", json, "print the table as JSON on stdout");
   try {

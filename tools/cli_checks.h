@@ -1,0 +1,38 @@
+#pragma once
+// Number checks for the tools' options, stricter and clearer than CLI11's: NaN and ±inf are refused
+// (CLI::Range only compares, and NaN passes every comparison: `--subdivide-to nan` was silently ignored,
+// `rtpack-make-scene --spacing nan` wrote null translations), and the message says what was expected
+// (CLI::PositiveNumber's lower bound is DBL_MIN: "Value 0 not in range 0.000000 to 1797693134862315...").
+#include <CLI/CLI.hpp>
+
+#include <cfloat>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+namespace rtp::tools {
+
+// A finite number v with lo < v (lo_open) or lo <= v, and v <= hi; `expected` names the set.
+inline CLI::Validator number_check(const std::string& expected, double lo, bool lo_open, double hi) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size()) return "expected " + expected + ", got '" + text + "'";
+        if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi))
+          return "expected " + expected + ", got " + text;
+        return {};
+      },
+      expected);
+}
+
+inline CLI::Validator positive() { return number_check("a positive number", 0, true, DBL_MAX); }
+inline CLI::Validator non_negative() { return number_check("a number >= 0", 0, false, DBL_MAX); }
+inline CLI::Validator finite_range(double lo, double hi) {
+  char text[64];
+  std::snprintf(text, sizeof text, "a number from %g to %g", lo, hi);
+  return number_check(text, lo, false, hi);
+}
+
+}  // namespace rtp::tools
