@@ -9,7 +9,12 @@
 
 #include <set>
 
+#include <fstream>
+
+#include "formats/chunk.h"
+#include "formats/ray_file.h"
 #include "gltf_builder.h"
+#include "reader/container.h"
 #include "tool_run.h"
 
 namespace rtp::test {
@@ -255,6 +260,38 @@ TEST_F(HardeningFiles, TraceRefusesToOverwriteItsInputs) {
     EXPECT_TRUE(slurp_file(r_path) == rays) << "the ray file changed";
   }
   EXPECT_TRUE(listing(out).empty());
+}
+
+// --make-camera-rays writes its ray file with the hit file, when the trace succeeded: a batching point whose
+// checksum fails while it is traced out of core leaves neither (a complete ray file of the failed run was
+// left behind).
+TEST_F(HardeningFiles, MadeCameraRaysAppearOnlyWhenTheTraceSucceeds) {
+  const std::string p = package();
+  uint64_t at = 0;
+  {
+    const PackageReader r(p);
+    for (const fmt::TocEntry& e : r.toc())
+      if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint) && at == 0) at = e.offset + e.stored_size / 2;
+  }
+  ASSERT_GT(at, 0u);
+  {
+    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(std::streamoff(at));
+    const char c = char(f.get());
+    f.seekp(std::streamoff(at));
+    f.put(char(c ^ 0x10));
+  }
+  const std::vector<std::string> args = {p, "--make-camera-rays", "8x8", "--rays", (out / "cam.rays").string(),
+                                         "--hits", (out / "h.bin").string(), "--memory-budget", "1MiB"};
+  const ToolResult bad = tool("rtpack-trace", args);
+  EXPECT_EQ(bad.code, 3) << bad.err;
+  EXPECT_NE(bad.err.find("checksum mismatch"), std::string::npos) << bad.err;
+  EXPECT_TRUE(listing(out).empty());
+  package();  // intact again: both files appear
+  const ToolResult ok = tool("rtpack-trace", args);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(listing(out), (std::set<std::string>{"cam.rays", "h.bin"}));
+  EXPECT_EQ(fs::file_size(out / "cam.rays"), 64 * sizeof(fmt::Ray));
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -178,10 +178,8 @@ int main(int argc, char** argv) {
       if (!parse_size(make_rays, &w, &h))
         throw rtp::Error(rtp::ExitCode::kUsage, "--make-camera-rays " + make_rays + ": expected WxH, e.g. 640x480");
       rtp::check_output_path(rays_path);
-      const rtp::CameraRays cr = rtp::camera_rays(reader, w, h, camera);
-      rtp::write_output_file(rays_path, cr.rays.data(), cr.rays.size() * sizeof(rtp::fmt::Ray));
-    }
-    if (render) {
+      rays = rtp::camera_rays(reader, w, h, camera).rays;  // the ray file is written with the hits, below
+    } else if (render) {
       rtp::CameraRays cr = rtp::camera_rays(reader, img_w, img_h, camera);
       rays = std::move(cr.rays);
       camera_text = cr.description;
@@ -236,6 +234,14 @@ int main(int argc, char** argv) {
       for (size_t k = 0; k < tile_order.size(); ++k) hits[tile_order[k]] = tiled_hits[k];
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // --make-camera-rays: the ray file is written now and put at its path after the hit file, so a trace or
+    // an output that fails leaves neither (a complete ray file of a failed run was left behind).
+    std::unique_ptr<rtp::OutputFile> made_rays;
+    if (!make_rays.empty()) {
+      made_rays = std::make_unique<rtp::OutputFile>(rays_path);
+      made_rays->write_at(0, rays.data(), rays.size() * sizeof(rtp::fmt::Ray));
+      made_rays->set_size(rays.size() * sizeof(rtp::fmt::Ray));
+    }
     uint64_t hit_count = 0, multi_hits = 0;
     if (any) {
       for (uint8_t o : occ) hit_count += o;
@@ -278,6 +284,7 @@ int main(int argc, char** argv) {
       }
       if (!hits_path.empty()) rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     }
+    if (made_rays) made_rays->commit();
     nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
