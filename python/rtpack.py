@@ -348,6 +348,9 @@ class Package:
         st = os.fstat(self._fd)
         self.file_size = st.st_size
         if self.file_size < ALIGNMENT:
+            head = os.pread(self._fd, min(self.file_size, 8), 0)
+            if head and head != MAGIC[:len(head)]:  # does not even start like a package
+                raise BadMagicError(f"not an rtpack package (bad magic; {self.file_size} bytes)")
             raise TruncatedError(f"truncated file: {self.file_size} bytes, smaller than the {ALIGNMENT}-byte "
                                  "header block")
         block = self._pread(0, ALIGNMENT, "header")
@@ -363,9 +366,12 @@ class Package:
         if hcrc != h["header_crc32c"]:
             raise ChecksumError(f"header checksum mismatch (stored {int(h['header_crc32c']):08x}, computed "
                                 f"{hcrc:08x}): corrupt header")
-        if h["file_size"] != self.file_size:
+        if h["file_size"] > self.file_size:
             raise TruncatedError(f"truncated file: header says {int(h['file_size'])} bytes, the file has "
                                  f"{self.file_size}")
+        if h["file_size"] < self.file_size:
+            raise MalformedError(f"the file has {self.file_size - int(h['file_size'])} bytes more than the header's "
+                                 f"{int(h['file_size'])} (data appended after the package?)")
         # SPEC §1.1 / §3: the TOC lies inside the file; entries may be longer than 48 bytes in a newer
         # minor version, a reader uses their prefix.
         toff, tcount, tsize = int(h["toc_offset"]), int(h["toc_count"]), int(h["toc_entry_size"])

@@ -245,6 +245,22 @@ TEST_F(Container, NotAPackage) {
   EXPECT_EQ(open_and_read_all((dir / "x.rtp").string()), "not an rtpack package (bad magic)");
 }
 
+// What a refusal says about a file that is not a whole package: a short file that does not start like one
+// is not a package (a glTF handed to rtpack-inspect was a "truncated file"), a short one that does is
+// truncated, and bytes after the header's file_size are appended data, not a truncation.
+TEST_F(Container, ShortFilesAndAppendedBytesSayWhatTheyAre) {
+  std::ofstream(dir / "s.gltf", std::ios::binary) << R"({"asset":{"version":"2.0"}})";
+  EXPECT_EQ(open_and_read_all((dir / "s.gltf").string()), "not an rtpack package (bad magic; 27 bytes)");
+  std::ofstream(dir / "m.rtp", std::ios::binary) << std::string(fmt::kMagic, 8) << std::string(100, '\0');
+  EXPECT_EQ(open_and_read_all((dir / "m.rtp").string()), "truncated file: 108 bytes, smaller than the 4096-byte header block");
+  const std::string p = (dir / "a.rtp").string();
+  write_sample(p);
+  const uint64_t size = fs::file_size(p);
+  std::ofstream(p, std::ios::binary | std::ios::app) << std::string(100, 'x');
+  EXPECT_EQ(open_and_read_all(p), "the file has 100 bytes more than the header's " + std::to_string(size) +
+                                      " (data appended after the package?)");
+}
+
 // ChunkBuilder borrows its sections and gathers one from several arrays: the chunk equals the one built
 // from the concatenation, whatever buffer it is finished into (a reused one keeps no old bytes).
 TEST(ChunkBuilder, GatheredSectionsEqualTheConcatenationInAnyBuffer) {

@@ -64,9 +64,15 @@ PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(pa
 }
 
 void PackageReader::check_header_and_toc() {
-  if (file_size_ < fmt::kAlignment)
+  if (file_size_ < fmt::kAlignment) {
+    // A short file that does not even start like a package is something else (a glTF given to inspect).
+    char head[8] = {};
+    const size_t n = size_t(std::min<uint64_t>(file_size_, sizeof head));
+    if (n && ::pread(fd_, head, n, 0) == ssize_t(n) && std::memcmp(head, fmt::kMagic, n) != 0)
+      fail_invalid("not an rtpack package (bad magic; " + std::to_string(file_size_) + " bytes)");
     fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
                  std::to_string(fmt::kAlignment) + "-byte header block");
+  }
   // The header block through the same aligned path as chunks.
   fmt::TocEntry hb{};
   hb.offset = 0;
@@ -84,9 +90,12 @@ void PackageReader::check_header_and_toc() {
   const uint32_t hcrc = crc32c(&header_, offsetof(fmt::Header, header_crc32c));
   if (hcrc != header_.header_crc32c)
     fail_invalid("header checksum mismatch (stored " + hex32(header_.header_crc32c) + ", computed " + hex32(hcrc) + "): corrupt header");
-  if (header_.file_size != file_size_)
+  if (header_.file_size > file_size_)
     fail_invalid("truncated file: header says " + std::to_string(header_.file_size) + " bytes, the file has " +
                  std::to_string(file_size_));
+  if (header_.file_size < file_size_)
+    fail_invalid("the file has " + std::to_string(file_size_ - header_.file_size) + " bytes more than the header's " +
+                 std::to_string(header_.file_size) + " (data appended after the package?)");
   if (header_.toc_entry_size < sizeof(fmt::TocEntry) || header_.toc_offset % fmt::kAlignment ||
       header_.toc_offset < fmt::kAlignment || header_.toc_offset > file_size_ || header_.toc_count > (file_size_ / header_.toc_entry_size) ||
       header_.toc_count * header_.toc_entry_size > file_size_ - header_.toc_offset)

@@ -515,6 +515,10 @@ class Refusals(unittest.TestCase):
                       self.refused(self.good[:1000], "trunc-1000", rtpack.TruncatedError))
         self.assertIn("truncated file: header says",
                       self.refused(self.good[:-100], "trunc-tail", rtpack.TruncatedError))
+        self.assertIn("100 bytes more than the header's",
+                      self.refused(self.good + bytes(100), "appended", rtpack.MalformedError))
+        self.assertIn("not an rtpack package (bad magic; 17 bytes)",
+                      self.refused(b'{"asset": "2.0"}\n', "short-json", rtpack.BadMagicError))
 
     def test_patched_fields(self):
         """Fields changed with every CRC fixed up: only the structural checks can catch them."""
