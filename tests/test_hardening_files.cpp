@@ -9,7 +9,9 @@
 
 #include <set>
 
+#include <cstring>
 #include <fstream>
+#include <limits>
 
 #include "formats/chunk.h"
 #include "formats/ray_file.h"
@@ -292,6 +294,34 @@ TEST_F(HardeningFiles, MadeCameraRaysAppearOnlyWhenTheTraceSucceeds) {
   EXPECT_EQ(ok.code, 0) << ok.err;
   EXPECT_EQ(listing(out), (std::set<std::string>{"cam.rays", "h.bin"}));
   EXPECT_EQ(fs::file_size(out / "cam.rays"), 64 * sizeof(fmt::Ray));
+}
+
+// Invalid rays (formats/ray_file.h) come back as misses and are counted; rtpack-trace also names the first,
+// on stderr and in --json, so that one bad ray among millions can be found.
+TEST_F(HardeningFiles, TraceNamesTheFirstInvalidRay) {
+  const std::string p = package();
+  std::string rays = four_rays();
+  float r1[8], r3[8];
+  std::memcpy(r1, rays.data() + 32, 32);
+  std::memcpy(r3, rays.data() + 96, 32);
+  r1[4] = std::numeric_limits<float>::quiet_NaN();  // ray 1: a NaN direction
+  r3[3] = 2, r3[7] = 1;                               // ray 3: tnear > tfar
+  rays.replace(32, 32, reinterpret_cast<const char*>(r1), 32);
+  rays.replace(96, 32, reinterpret_cast<const char*>(r3), 32);
+  write_bytes(in / "bad.rays", rays);
+  const std::vector<std::string> args = {p, "--rays", (in / "bad.rays").string(), "--hits", (out / "h.bin").string()};
+  const ToolResult r = tool("rtpack-trace", args);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("4 rays: 2 hits, 2 invalid"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("warning: 2 invalid rays"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the first ray 1: org (0.15, 0.2, 1) dir (nan, 0, -1)"), std::string::npos) << r.err;
+  std::vector<std::string> json_args = args;
+  json_args.push_back("--json");
+  const ToolResult j = tool("rtpack-trace", json_args);
+  ASSERT_EQ(j.code, 0) << j.err;
+  const auto doc = nlohmann::json::parse(j.out);
+  EXPECT_EQ(doc["invalid_rays"], 2);
+  EXPECT_EQ(doc["first_invalid_ray"], 1);
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -243,6 +243,10 @@ int main(int argc, char** argv) {
       made_rays->set_size(rays.size() * sizeof(rtp::fmt::Ray));
     }
     uint64_t hit_count = 0, multi_hits = 0;
+    size_t first_invalid = rays.size();  // named on stderr and in --json: which ray to look at
+    if (invalid.load())
+      for (size_t i = 0; i < rays.size() && first_invalid == rays.size(); ++i)
+        if (!rtp::ray_is_valid(rays[i])) first_invalid = i;
     if (any) {
       for (uint8_t o : occ) hit_count += o;
       rtp::write_output_file(hits_path, occ.data(), occ.size());
@@ -287,6 +291,7 @@ int main(int argc, char** argv) {
     if (made_rays) made_rays->commit();
     nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
                         {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
+                        {"first_invalid_ray", first_invalid < rays.size() ? nlohmann::json(first_invalid) : nlohmann::json()},
                         {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
                         {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
     if (multi) j["multi_hit"] = {{"k", multi}, {"hits", multi_hits}};
@@ -367,6 +372,14 @@ int main(int argc, char** argv) {
                    (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str(),
                    (unsigned long long)visits.load(), (unsigned long long)culled.load(), 100 * rate,
                    j["culling"].get<std::string>().c_str());
+      if (first_invalid < rays.size()) {
+        const rtp::fmt::Ray& r = rays[first_invalid];
+        std::fprintf(stderr,
+                     "warning: %llu invalid rays (NaN/Inf, tnear > tfar or tnear = inf: formats/ray_file.h), the first ray "
+                     "%zu: org (%g, %g, %g) dir (%g, %g, %g) t [%g, %g]\n",
+                     (unsigned long long)invalid.load(), first_invalid, r.org[0], r.org[1], r.org[2], r.dir[0], r.dir[1],
+                     r.dir[2], r.tnear, r.tfar);
+      }
     }
   } catch (const rtp::Error& e) {
     return rtp::tools::report_error("rtpack-trace", json, package, e.code(), e.what());
