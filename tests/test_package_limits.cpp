@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cstring>
+#include <limits>
 #include <fstream>
 #include <iterator>
 
@@ -16,6 +17,7 @@
 #include "formats/ray_file.h"
 #include "hostile_package.h"
 #include "reader/attribute_lookup.h"
+#include "reader/camera.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
@@ -236,6 +238,39 @@ TEST_F(Limits, AttributeMeshIdDoesNotSizeTables) {
   }
   EXPECT_EQ(same, 2u);
   EXPECT_EQ(lost, 1u);
+}
+
+// The header's world bounds frame the automatic camera: NaN or inverted ones, with every checksum intact,
+// gave a blank image and exit 0; --verify names them.
+TEST_F(Limits, VerifyReportsBadWorldBounds) {
+  const std::string p = copy(bases().forest);
+  patch_header(p, [](fmt::Header& h) { h.bounds_lo[1] = std::numeric_limits<float>::quiet_NaN(); });
+  expect_inspect_problem(p, {"header: world bounds on y are [nan,", "not finite with min <= max"}, true);
+  const std::string q = copy(bases().forest);
+  patch_header(q, [](fmt::Header& h) { std::swap(h.bounds_lo[2], h.bounds_hi[2]); });
+  expect_inspect_problem(q, {"header: world bounds on z are", "not finite with min <= max"}, true);
+}
+
+// A camera's world transform must be what the converter writes (finite, a rotation): all zeros gave zero
+// directions and 1e300 infinite ones, both a blank image with exit 0.
+TEST(CameraWorld, MustBeAFiniteRotation) {
+  const double good[12] = {0, 0, 1, 5, 0, 1, 0, -2, -1, 0, 0, 3};  // a turn about y, translated
+  EXPECT_NO_THROW(check_camera_world(good, "/cameras/0/world"));
+  double zero[12] = {}, huge[12], nan[12];
+  for (int i = 0; i < 12; ++i) huge[i] = good[i], nan[i] = good[i];
+  huge[7] = 1e300;
+  nan[5] = std::numeric_limits<double>::quiet_NaN();
+  for (const auto& [m, want] : {std::pair<const double*, std::string>{zero, "/cameras/0/world: the 3x3 part has determinant 0"},
+                               {huge, "/cameras/0/world/7: 1e+300 is not a finite coordinate"},
+                               {nan, "/cameras/0/world/5: nan is not a finite coordinate"}}) {
+    try {
+      check_camera_world(m, "/cameras/0/world");
+      ADD_FAILURE() << want << ": accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ExitCode::kInputInvalid);
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST_F(Limits, VerifyReportsNonZeroPadding) {

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
+#include "reader/camera.h"
 #include "reader/check_chunks.h"
 #include "reader/chunk_io.h"
 
@@ -398,7 +399,9 @@ nlohmann::json metadata_json(const Resident& res) {
       nlohmann::json j = {{"name", jsonc::get_string(cam, "name", cp)}, {"type", jsonc::get_string(cam, "type", cp)}};
       const nlohmann::json& world = jsonc::member(cam, "world", cp);
       if (!world.is_array() || world.size() != 12) fail_invalid(cp + "/world: needs 12 numbers");
-      for (size_t k = 0; k < 12; ++k) jsonc::as_number(world[k], cp + "/world/" + std::to_string(k));
+      double m[12];
+      for (size_t k = 0; k < 12; ++k) m[k] = jsonc::as_number(world[k], cp + "/world/" + std::to_string(k));
+      check_camera_world(m, cp + "/world");
       j["position"] = {world[3], world[7], world[11]};
       for (const char* k : {"yfov", "aspect_ratio", "xmag", "ymag", "znear", "zfar"})
         if (jsonc::get_number(cam, k, 0.0, cp) != 0) j[k] = cam[k];

@@ -86,6 +86,16 @@ void Verifier::check_toc() {
   bool reserved = (h.flags & ~(fmt::kFlagNormals | fmt::kFlagUvs | fmt::kFlagDag)) != 0;
   for (uint8_t b : h.reserved) reserved |= b != 0;
   if (reserved) out_.add("header: flags or reserved bytes are not 0");
+  // World bounds (SPEC §1): finite with lo <= hi, or the empty box (lo = +inf, hi = -inf) of a package
+  // without triangles. The automatic camera frames them: NaN bounds gave a blank image and exit 0.
+  static const char* kAxis = "xyz";
+  for (int k = 0; k < 3; ++k) {
+    const float lo = h.bounds_lo[k], hi = h.bounds_hi[k];
+    const bool empty = h.unique_triangles == 0 && lo == INFINITY && hi == -INFINITY;
+    if (!empty && !(std::isfinite(lo) && std::isfinite(hi) && lo <= hi))
+      out_.add(std::string("header: world bounds on ") + kAxis[k] + " are [" + std::to_string(lo) + ", " + std::to_string(hi) +
+               "], not finite with min <= max");
+  }
   check_padding();
   const auto& toc = r_.toc();
   std::set<std::pair<uint32_t, uint64_t>> seen;

@@ -41,6 +41,20 @@ std::string fixed(double v, int digits) {
 
 size_t camera_count(const PackageReader& reader) { return read_cameras(reader).cameras.size(); }
 
+void check_camera_world(const double m[12], const std::string& pointer) {
+  char v[32];
+  for (int i = 0; i < 12; ++i)
+    if (!(std::fabs(m[i]) <= 1e30)) {  // also NaN
+      std::snprintf(v, sizeof v, "%g", m[i]);
+      fail_invalid(pointer + "/" + std::to_string(i) + ": " + v + " is not a finite coordinate of float range");
+    }
+  const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
+  if (!(std::fabs(std::fabs(det) - 1) <= 1e-3)) {
+    std::snprintf(v, sizeof v, "%g", det);
+    fail_invalid(pointer + ": the 3x3 part has determinant " + v + ", not a rotation (+-1)");
+  }
+}
+
 CameraRays camera_rays(const PackageReader& reader, int w, int h, int camera) {
   const Metadata md = read_cameras(reader);
   const size_t n = md.cameras.size();
@@ -63,6 +77,7 @@ CameraRays camera_rays(const PackageReader& reader, int w, int h, int camera) {
     const nlohmann::json& world = jsonc::member(cam, "world", cp);
     if (!world.is_array() || world.size() != 12) fail_invalid(cp + "/world: needs 12 numbers");
     for (size_t i = 0; i < 12; ++i) m[i] = jsonc::as_number(world[i], cp + "/world/" + std::to_string(i));
+    check_camera_world(m, cp + "/world");
     ortho = type == "orthographic";
     std::string name = cam.contains("name") && cam["name"].is_string() ? cam["name"].get<std::string>() : "";
     out.description = "camera " + std::to_string(ci) + (name.empty() ? "" : " '" + name + "'") + " (" + type;

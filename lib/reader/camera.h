@@ -20,6 +20,11 @@ struct CameraRays {
 // camera the package does not have, and (kInputInvalid) for malformed camera metadata, naming the pointer.
 CameraRays camera_rays(const PackageReader& reader, int width, int height, int camera = -1);
 
+// A camera's world transform (row-major 3x4, camera -> world) as the converter writes it: finite, within
+// float range, and its 3x3 part a rotation (scale stripped: determinant +-1 within 1e-3). Throws
+// rtp::Error (kInputInvalid) naming `pointer` (e.g. "chunk 0 (metadata): /cameras/1/world") otherwise.
+void check_camera_world(const double m[12], const std::string& pointer);
+
 // The number of glTF cameras in the package's metadata.
 size_t camera_count(const PackageReader& reader);
 
