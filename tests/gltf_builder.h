@@ -2,6 +2,7 @@
 // Test helper: fabricates small glTF files (.gltf with data-URI or external buffers, .glb) so every
 // import path and every rejection can be exercised on exact bytes.
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -136,5 +137,29 @@ inline std::filesystem::path temp_dir(const std::string& name) {
 
 inline std::filesystem::path source_dir() { return RTP_SOURCE_DIR; }
 inline std::filesystem::path shared_assets() { return std::filesystem::path(RTP_SOURCE_DIR) / ".." / "shared" / "assets"; }
+
+// TESTING.md: ../shared/assets may be missing on a developer's machine (the tests that need it skip), never
+// in CI: scripts/test sets RTP_REQUIRE_SHARED=1 when the assets are there, and a missing asset then fails
+// the test instead of letting it pass unseen (a renamed file or a wrong path skipped silently).
+inline bool shared_assets_required() {
+  const char* v = std::getenv("RTP_REQUIRE_SHARED");
+  return v != nullptr && *v != 0 && std::string(v) != "0";
+}
+
+}  // namespace rtp::test
+
+// Skips the test when `where` (a ../shared/assets file or directory) is absent, or fails it under
+// RTP_REQUIRE_SHARED. Returns from the test body either way.
+#define RTP_NEED_SHARED(where)                                                                               \
+  do {                                                                                                      \
+    const std::filesystem::path rtp_need_shared_path_ = (where);                                             \
+    if (!std::filesystem::exists(rtp_need_shared_path_)) {                                                  \
+      if (::rtp::test::shared_assets_required())                                                            \
+        FAIL() << rtp_need_shared_path_ << " is absent, and RTP_REQUIRE_SHARED is set (../shared/assets)"; \
+      GTEST_SKIP() << rtp_need_shared_path_ << " is absent (../shared/assets is not checked out next to the repository)"; \
+    }                                                                                                       \
+  } while (0)
+
+namespace rtp::test {
 
 }  // namespace rtp::test

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "bvh/bvh.h"
+#include "gltf_builder.h"
 #include "oracle/compare.h"
 #include "oracle/embree_oracle.h"
 #include "oracle/instance_reference.h"
@@ -191,7 +192,7 @@ TEST(AgreementReplay, RaysThatOnceFailed) {
   for (const ReplayRay& r : kReplays) {
     SCOPED_TRACE(std::string(r.scene) + ": " + r.what);
     const std::string path = (r.shared ? kShared : kSamples) + "/" + r.scene;
-    if (r.shared && !fs::exists(path)) GTEST_SKIP() << path << " is not there (../shared/assets)";
+    if (r.shared) RTP_NEED_SHARED(path);
     const Scene scene = import_gltf(path);
     const fmt::Ray ray = ray_from_bits(r.bits);
     fmt::Hit embree, brute, by_instance;
@@ -227,8 +228,7 @@ class Agreement : public ::testing::TestWithParam<SceneCase> {};
 TEST_P(Agreement, TracerAgreesWithEmbreeRayByRay) {
   const SceneCase& sc = GetParam();
   const std::string path = (sc.shared ? kShared : kSamples) + "/" + sc.path;
-  if (sc.shared && !fs::exists(path))
-    GTEST_SKIP() << path << " is absent (../shared/assets is not checked out next to the repository)";
+  if (sc.shared) RTP_NEED_SHARED(path);
   check_scene(path, sc.far_from_origin);
 }
 

@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "bvh/bvh.h"
+#include "gltf_builder.h"
 #include "scene/import.h"
 #include "test_bvh_check.h"
 
@@ -73,7 +74,7 @@ TEST(BvhFiles, CollapseVersusSplitAsObserved) {
 
 TEST(BvhFiles, SharedAssetsIfPresent) {
   const fs::path bunny = fs::path(RTP_SOURCE_DIR) / ".." / "shared" / "assets" / "models" / "stanford-bunny.glb";
-  if (!fs::exists(bunny)) GTEST_SKIP() << "../shared/assets is absent: " << bunny;
+  RTP_NEED_SHARED(bunny);
   const Scene scene = import_gltf(bunny.string());
   for (BuildMethod method : {BuildMethod::kCollapse, BuildMethod::kSplit}) {
     BuildOptions o;

@@ -107,7 +107,7 @@ TEST(Cluster, GallerySmallTargetManyPoints) {
 // several segments of at most 2^16 triangles (unless one mesh is larger), not in one of 1.6M.
 TEST(Cluster, SegmentTargetFollowsTheSegmentsOwnTriangles) {
   const std::filesystem::path path = shared_assets() / "scenes/forest-2k.glb";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "../shared/assets is absent: " << path;
+  RTP_NEED_SHARED(path);
   const Scene s = import_gltf(path.string());
   const Plan p = plan_batching_points(s, {});
   EXPECT_GT(p.chunk_target, uint64_t(1) << 20);

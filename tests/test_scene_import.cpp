@@ -184,7 +184,7 @@ nlohmann::json glb_json(const fs::path& p) {
 
 TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
   const fs::path p = shared_assets() / "scenes/gallery.glb";
-  if (!fs::exists(p)) GTEST_SKIP() << "../shared/assets is absent: " << p;
+  RTP_NEED_SHARED(p);
   const Scene s = import_gltf(p.string());
   const nlohmann::json j = glb_json(p);
   std::vector<std::pair<int, std::array<double, 16>>> expect;
@@ -304,7 +304,7 @@ TEST(WorldBounds, ManyInstancesEqualBruteForceForAnyThreadCount) {
 
 TEST(ImportReal, Forest2kInstancedTriangleCount) {
   const fs::path p = shared_assets() / "scenes/forest-2k.glb";
-  if (!fs::exists(p)) GTEST_SKIP() << "../shared/assets is absent: " << p;
+  RTP_NEED_SHARED(p);
   const Scene s = import_gltf(p.string());
   const nlohmann::json j = glb_json(p);
   // Σ over instancing nodes of (instance count × triangles of the node's mesh), from the raw JSON.

@@ -122,6 +122,7 @@ TEST(VoxelInstances, PointGridsHoldEveryCellTheirInstancesTouch) {
       {(s / "forest-small.glb").string(), 12}, {(s / "gallery.glb").string(), 12}, {(s / "far.glb").string(), 8}};
   const fs::path forest = source_dir() / "../shared/assets/scenes/forest-2k.glb";
   // ~4 s of the test's 6 at -O2: not under the sanitizers (RTP_SANITIZED, scripts/test).
+  if (!fs::exists(forest) && shared_assets_required()) ADD_FAILURE() << forest << " is absent, and RTP_REQUIRE_SHARED is set";
   if (fs::exists(forest) && std::getenv("RTP_SANITIZED") == nullptr) scenes.emplace_back(forest.string(), 64);
   for (const auto& [path, points] : scenes) {
     const Totals t = check_scene(path, points);
