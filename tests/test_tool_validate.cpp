@@ -68,6 +68,36 @@ TEST(ValidateTool, AnEmptyPackageIsValidAndSaysSo) {
   EXPECT_TRUE(r["kinds"].empty());
 }
 
+// The convert options validate re-applies to --source are the package's (metadata /options): when they do
+// not fit the source, the message says so instead of naming an option the user never passed ("--scene 7:
+// the file has 1 scenes").
+TEST(ValidateTool, RecordedOptionsThatDoNotFitTheSourceAreNamedAsThePackages) {
+  const fs::path dir = temp_dir("validate_options");
+  const std::string src = (source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string();
+  const std::string pkg = (dir / "s.rtp").string();
+  ASSERT_EQ(run_tool("rtpack-convert", {"-q", src, "--zstd-level", "0", "-o", pkg}, dir).code, 0);
+  size_t meta = 0;
+  {
+    const PackageReader r(pkg);
+    while (meta < r.toc().size() && r.toc()[meta].kind != uint32_t(fmt::ChunkKind::kMetadata)) ++meta;
+    ASSERT_LT(meta, r.toc().size());
+  }
+  bool patched = false;
+  patch_chunk(pkg, meta, [&](uint8_t* c, size_t n) {
+    std::string text(reinterpret_cast<const char*>(c), n);
+    const size_t at = text.find("\"scene\":0,");
+    if (at == std::string::npos) return;
+    c[at + 8] = '7';  // the same length: the chunk keeps its size
+    patched = true;
+  });
+  ASSERT_TRUE(patched);
+  const ToolResult r = run_tool("rtpack-validate", {pkg, "--source", src, "--rays", "100"}, dir);
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_NE(r.err.find("metadata /options, the convert options the package records, do not apply to --source"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("scene 7"), std::string::npos) << r.err;
+}
+
 TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
   const fs::path dir = temp_dir("validate");
   const fs::path s = source_dir() / "samples";

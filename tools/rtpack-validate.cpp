@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <cstdint>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
@@ -118,12 +119,25 @@ rtp::Scene source_scene(const rtp::PackageReader& reader, const std::string& sou
     s.weld = opt.value("weld", -1.0);
     s.subdivide = opt.value("subdivide", 0);
     s.subdivide_to = opt.value("subdivide_to", 0.0);
-    s.scene = opt.value("scene", -1);
+    const int64_t scene = opt.value("scene", int64_t(-1));
+    if (scene < -1 || scene > int64_t(INT32_MAX))
+      throw rtp::Error(rtp::ExitCode::kInputInvalid, label + ": metadata /options/scene: " + std::to_string(scene) +
+                                                         " is not a glTF scene index");
+    s.scene = int(scene);
     s.attributes = opt.value("attributes", std::vector<std::string>{});
   } catch (const nlohmann::json::exception& e) {
     throw rtp::Error(rtp::ExitCode::kInputInvalid, label + ": metadata /options: " + e.what());
   }
-  rtp::Scene scene = rtp::convert_scene(s).scene;
+  rtp::Scene scene;
+  try {
+    scene = rtp::convert_scene(s).scene;
+  } catch (const rtp::Error& e) {
+    // The options are the package's, not this command line's: a usage error names options the user never
+    // passed ("--subdivide and --subdivide-to exclude each other").
+    if (e.code() != rtp::ExitCode::kUsage) throw;
+    throw rtp::Error(rtp::ExitCode::kInputInvalid, label + ": metadata /options, the convert options the package records, " +
+                                                       "do not apply to --source " + source + ": " + e.what());
+  }
   const auto& h = reader.header();
   if (scene.instanced_triangles() != h.instanced_triangles || scene.unique_triangles() != h.unique_triangles)
     throw rtp::Error(rtp::ExitCode::kUsage,
