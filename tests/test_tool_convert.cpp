@@ -137,7 +137,8 @@ TEST_F(Convert, UsageErrors) {
            {"--threads 0", "--threads: expected a positive number, got 0"},
            {"--weld -1", "--weld: expected a number >= 0, got -1"},
            {"--weld 1e400", "--weld: expected a number >= 0, got 1e400"},
-           {"--chunk-target x", "--chunk-target: expected a positive number, got 'x'"}}) {
+           {"--chunk-target x", "--chunk-target: expected a number from 1 to 9.0072e+15, got 'x'"},
+           {"--chunk-target 99999999999999999999999", "--chunk-target: expected a number from 1 to 9.0072e+15, got 99999999999999999999999"}}) {
     const ToolRun r = convert("--dry-run " + args + " " + p, dir);
     EXPECT_EQ(r.code, 1) << args;
     EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;

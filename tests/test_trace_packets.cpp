@@ -121,6 +121,13 @@ TEST(TracePackets, CameraTilesOnARealSampleEqualSingleRays) {
   // Primary rays come in 4x4 pixel tiles (oracle/rays.h): packets of 4, 8, 16 are 2x2-ish, 4x2, 4x4 tiles.
   const std::vector<fmt::Ray> primary = generate_rays(scene, RayKind::kPrimary, 4096, gen);
   const std::vector<fmt::Ray> shadow = generate_rays(scene, RayKind::kShadow, 2048, gen);
+  size_t hits = 0;
+  {
+    std::vector<fmt::Hit> h(primary.size());
+    trace_closest<8, 8>(base.view(), primary.data(), h.data(), primary.size(), {});
+    for (const fmt::Hit& x : h) hits += x.instance != fmt::Hit::kNone;
+  }
+  EXPECT_GT(hits, primary.size() / 8) << "the camera must see the helmet";
   const InCoreScene<4, 4> w4 = InCoreScene<4, 4>::build(scene);
   const InCoreScene<16, 8> w16 = InCoreScene<16, 8>::build(scene);
   // Shadow rays toward one light from scattered hits are less coherent: fewer go in packets.
