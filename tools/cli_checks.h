@@ -34,5 +34,8 @@ inline CLI::Validator finite_range(double lo, double hi) {
   std::snprintf(text, sizeof text, "a number from %g to %g", lo, hi);
   return number_check(text, lo, false, hi);
 }
+// --chunk-target (rtpack-convert, rtpack-bench --convert): 1 to 2^53 triangles; beyond that the uint64
+// conversion saturated silently.
+inline CLI::Validator chunk_target_range() { return finite_range(1, 9007199254740992.0); }
 
 }  // namespace rtp::tools

@@ -22,7 +22,7 @@ struct SourceMesh {
 // holds it; throws Error(kInputIo) naming every place looked in.
 std::string resolve_default(const std::string& rel);
 // Every mesh with triangles of every file (external buffers also from allow_paths); throws naming the file.
-// Refuses (exit 2) when `output` is one of the files read: a source glTF's external buffer.
+// Refuses (exit 1, Error kUsage) when `output` is one of the files read: a source glTF's external buffer.
 std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths,
                                      const std::string& output);
 // One 1-to-4 midpoint split of every triangle (shared edges share the midpoint vertex).

@@ -425,7 +425,7 @@ int main(int argc, char** argv) {
                  "--convert: zstd's shortest match in batching points and mesh segments, 3..7 or 0 for the level's own (as rtpack-convert)")
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}))->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
-      ->check(rtp::tools::positive())->needs(convert_flag);
+      ->check(rtp::tools::chunk_target_range())->needs(convert_flag);
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
     convert_flag->excludes(app.get_option(trace_only));
   convert_flag->excludes(build_stats);

@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   app.add_option("--bvh-build", build, "collapse (SAH collapse, default) or split (top-down W-way)")
       ->check(CLI::IsMember({"collapse", "split"}));
   app.add_option("--chunk-target", chunk_target, "triangles per batching point (default: derived from the scene)")
-      ->check(rtp::tools::finite_range(1, 9007199254740992.0));  // 2^53: beyond it uint64 parsing saturated silently
+      ->check(rtp::tools::chunk_target_range());
   app.add_option("--chunk-by", chunk_by, "count instanced (default) or unique triangles toward the target")
       ->check(CLI::IsMember({"instanced", "unique"}));
   app.add_option("--attributes", attributes,

@@ -9,9 +9,9 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
-#include <cstdint>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
