@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bvh/bvh.h"
 #include "cluster/cluster.h"
 #include "gltf_builder.h"
 #include "mesh/prepare.h"
@@ -72,13 +73,14 @@ Totals check_scene(const std::string& path, uint64_t points_wanted) {
   co.chunk_target = std::max<uint64_t>(64, scene.instanced_triangles() / points_wanted);
   const Plan plan = plan_batching_points(scene, co);
   const voxel::MeshProxies proxies(scene, plan);
+  const std::vector<fmt::InstanceRecord> records = make_instance_records(scene.instances);
   Totals t;
   for (size_t p = 0; p < plan.points.size(); ++p) {
     const BatchingPoint& bp = plan.points[p];
     if (bp.instances.empty()) continue;
     // Pieces voxelize triangle by triangle (VoxelVoxelize.*): a point of instances only isolates the
     // instance path; a mixed point is judged on its instances' cells only (the pieces' add cells).
-    const voxel::PointProxy px = voxel::voxelize_point(scene, plan, proxies, bp, {});
+    const voxel::PointProxy px = voxel::voxelize_point(scene, plan, proxies, records.data(), bp, {});
     const voxel::DagView view{px.dag.words.data(), px.dag.words.size(), px.dag.leaves.data(), px.dag.leaves.size()};
     const Grid got = voxel::decode_dag(px.grid, view);
     const Vec3d origin{px.grid.origin[0], px.grid.origin[1], px.grid.origin[2]};

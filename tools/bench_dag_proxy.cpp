@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "bench_dag_parts.h"
+#include "bvh/bvh.h"
 #include "core/error.h"
 #include "formats/chunk.h"
 #include "package/package.h"
@@ -68,6 +69,7 @@ void run_proxy(const DagBenchConfig& cfg, std::vector<ProxyRecord>& out, uint64_
     const auto t0 = Clock::now();
     const Prepared p = load(path, uint64_t(1) << 40, cfg.allow_paths);  // one batching point per model
     const voxel::MeshProxies meshes(p.scene, p.plan);
+    const std::vector<fmt::InstanceRecord> records = make_instance_records(p.scene.instances);
     voxel::VoxelOptions vo;
     vo.resolution = cfg.proxy_resolution;
     ProxyRecord r;
@@ -79,7 +81,7 @@ void run_proxy(const DagBenchConfig& cfg, std::vector<ProxyRecord>& out, uint64_
     voxel::DagPool own;
     std::vector<voxel::PointProxy> proxies;
     for (const BatchingPoint& bp : p.plan.points) {
-      voxel::PointProxy px = voxel::voxelize_point(p.scene, p.plan, meshes, bp, vo);
+      voxel::PointProxy px = voxel::voxelize_point(p.scene, p.plan, meshes, records.data(), bp, vo);
       r.set_cells += px.set_cells;
       r.dag_bytes += px.dag.bytes();
       fmt::DagGrid g = px.grid;
@@ -98,7 +100,8 @@ void run_proxy(const DagBenchConfig& cfg, std::vector<ProxyRecord>& out, uint64_
     tbb::task_arena one(1);
     one.execute([&] {
       r.voxelize_s = best_of(r.voxel_reps, [&] {
-        for (const BatchingPoint& bp : p.plan.points) (void)voxel::voxelize_point(p.scene, p.plan, meshes, bp, vo);
+        for (const BatchingPoint& bp : p.plan.points)
+          (void)voxel::voxelize_point(p.scene, p.plan, meshes, records.data(), bp, vo);
       });
       r.loop_triangles = 0;
       for (const BatchingPoint& bp : p.plan.points)

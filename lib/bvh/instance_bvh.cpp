@@ -1,6 +1,8 @@
 // The instance level (Molenaar 2019 §4.1 two-level BVH): instance records (SPEC §2.4), world bounds of
 // instances, and the W-wide BVH over boxes that the instance level uses (same builders as meshes,
 // leaf cost per instance instead of per block).
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 
 #include "bvh/build_internal.h"
@@ -57,6 +59,18 @@ fmt::InstanceRecord make_instance_record(const Instance& instance) {
   rec.source_node = instance.node;
   rec.source_gpu_instance = instance.gpu_instance;
   return rec;
+}
+
+void make_instance_records(const std::vector<Instance>& instances, fmt::InstanceRecord* out) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, instances.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) out[i] = make_instance_record(instances[i]);
+  });
+}
+
+std::vector<fmt::InstanceRecord> make_instance_records(const std::vector<Instance>& instances) {
+  std::vector<fmt::InstanceRecord> out(instances.size());
+  make_instance_records(instances, out.data());
+  return out;
 }
 
 bool record_invertible(const fmt::InstanceRecord& rec) {

@@ -70,6 +70,7 @@ struct Job {
   ChunkKind kind;
   uint64_t id;
   AlignedBytes raw;  // resident chunks; a geometry chunk is sealed (compressed) at once, see seal()
+  const AlignedBytes* source = nullptr;  // else a resident chunk's raw bytes owned by write_t (the instance table)
   uint64_t raw_size = 0;
   AlignedBytes stored{};
   fmt::Compression comp{};
@@ -130,8 +131,8 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
 // A batching point: its pieces (local space) with their BVHs, its local instance table and an
 // instance BVH over pieces and instances (SPEC §4.2).
 template <int W, int B>
-void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>& mesh_box, const BatchingPoint& bp,
-                 const BuildOptions& bo, const SealOptions& so, Job& job) {
+void build_point(const Scene& scene, const Plan& plan, const fmt::InstanceRecord* table, const std::vector<Box3f>& mesh_box,
+                 const BatchingPoint& bp, const BuildOptions& bo, const SealOptions& so, Job& job) {
   ChunkParts<W, B> parts;
   AttributeChunkBuilder attrs;
   std::vector<fmt::InstanceRecord> records;
@@ -152,7 +153,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
     attrs.add(k, scene.instances[piece.instance].mesh, piece.mesh, &piece.prim);
     job.triangles += piece.mesh.triangle_count();
     const Instance& src = scene.instances[piece.instance];
-    fmt::InstanceRecord r = make_instance_record(src);  // pieces keep their mesh's local space
+    fmt::InstanceRecord r = table[piece.instance];  // pieces keep their mesh's local space
     r.mesh = uint32_t(slots.size());
     slots.push_back(fmt::kPieceBit | entry);
     records.push_back(r);
@@ -165,7 +166,7 @@ void build_point(const Scene& scene, const Plan& plan, const std::vector<Box3f>&
     const Instance& in = scene.instances[i];
     auto [it, fresh] = mesh_slot.emplace(in.mesh, uint32_t(slots.size()));
     if (fresh) slots.push_back(in.mesh);
-    fmt::InstanceRecord r = make_instance_record(in);
+    fmt::InstanceRecord r = table[i];
     r.mesh = it->second;
     records.push_back(r);
     global_ids.push_back(i);
@@ -202,7 +203,18 @@ constexpr size_t kResidentBeforePoints = 2;
 
 Job resident_job(ChunkKind kind, ChunkBuilder& cb) { return Job{kind, 0, cb.finish()}; }
 
-std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
+// The instance table chunk (SPEC §4.1 kind 4) with every record computed in place: batching points and
+// culling proxies copy their records from it (no 10^6-record copy, each record computed once).
+AlignedBytes instance_table_chunk(const Scene& scene) {
+  ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
+  ic.add_reserved(SectionType::kInstances, scene.instances.size(), sizeof(fmt::InstanceRecord));
+  AlignedBytes raw = ic.finish();
+  make_instance_records(scene.instances, reinterpret_cast<fmt::InstanceRecord*>(ChunkBuilder::section_data(raw, 0)));
+  return raw;
+}
+
+std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o,
+                                     const AlignedBytes& instance_table) {
   std::vector<Job> jobs;
   auto add = [&](ChunkKind kind, ChunkBuilder& cb) { jobs.push_back(resident_job(kind, cb)); };
   nlohmann::json meta = o.metadata;
@@ -234,16 +246,8 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
   tc.add(SectionType::kTopNodes, plan.top);
   add(ChunkKind::kTopLevelBvh, tc);
 
-  // In parallel: 10^6 records one by one were 5 % of a forest-1m convert's samples, on one thread.
-  // Aligned storage: not zero-filled first, and a large one's pages go on (core/aligned.h) to the
-  // chunk's zstd scratch when it is freed.
-  std::vector<fmt::InstanceRecord, AlignedAllocator<fmt::InstanceRecord>> recs(scene.instances.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, recs.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i) recs[i] = make_instance_record(scene.instances[i]);
-  });
-  ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
-  ic.add_raw(SectionType::kInstances, recs.data(), recs.size(), sizeof(fmt::InstanceRecord));
-  add(ChunkKind::kInstances, ic);
+  jobs.push_back(Job{ChunkKind::kInstances, 0, {}});
+  jobs.back().source = &instance_table;
 
   std::vector<fmt::MeshInfo> infos;
   std::vector<SourcePrimitive> prims;
@@ -317,8 +321,9 @@ std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const
 std::vector<Job> compress_all(std::vector<Job> jobs, int level) {
   tbb::parallel_for(size_t(0), jobs.size(), [&](size_t i) {
     Job& j = jobs[i];
-    j.raw_size = j.raw.size();
-    j.stored = PackageWriter::compress(j.raw.data(), j.raw.size(), level, j.comp);
+    const AlignedBytes& raw = j.source ? *j.source : j.raw;
+    j.raw_size = raw.size();
+    j.stored = PackageWriter::compress(raw.data(), raw.size(), level, j.comp);
     j.raw = AlignedBytes();
   });
   return jobs;
@@ -349,9 +354,12 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
   voxel::DagPool pool;
   // The resident chunks that need no batching point are built and compressed beside the pipeline.
+  // In parallel: 10^6 records one by one were 5 % of a forest-1m convert's samples, on one thread.
+  AlignedBytes instance_table = instance_table_chunk(scene);
+  const auto* records = reinterpret_cast<const fmt::InstanceRecord*>(ChunkBuilder::section_data(instance_table, 0));
   std::vector<Job> early;
   tbb::task_group beside;
-  beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
+  beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o, instance_table), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
   struct Packed { Job job; AlignedBytes attr_stored; fmt::Compression attr_comp; voxel::PointProxy proxy; };
   const SealOptions seal_opt{o.zstd_level, o.zstd_raw_literals, o.zstd_leaf_min_match};
@@ -394,12 +402,13 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                  if (o.dag)
                                                    voxelizing.run([&] {
                                                      const auto t0 = std::chrono::steady_clock::now();
-                                                     p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies,
+                                                     p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records,
                                                                                      plan.points[k - n_seg], o.voxel);
                                                      voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                                                                      std::chrono::steady_clock::now() - t0).count();
                                                    });
-                                                 build_point<W, B>(scene, plan, mesh_box, plan.points[k - n_seg], o.bvh, seal_opt, p.job);
+                                                 build_point<W, B>(scene, plan, records, mesh_box, plan.points[k - n_seg], o.bvh,
+                                                                   seal_opt, p.job);
                                                  voxelizing.wait();
                                                }
                                                if (!p.job.attr_raw.empty())

@@ -24,6 +24,23 @@ void ChunkBuilder::append_to_section(const void* data, size_t count) {
   if (count) p.pieces.push_back({static_cast<const uint8_t*>(data), count * size_t(p.e.elem_size)});
 }
 
+void ChunkBuilder::add_reserved(fmt::SectionType type, size_t count, size_t elem_size) {
+  begin_section(type, elem_size);
+  Pending& p = sections_.back();
+  p.e.count = count;
+  if (count) p.pieces.push_back({nullptr, count * elem_size});
+}
+
+uint8_t* ChunkBuilder::section_data(AlignedBytes& chunk, size_t index) {
+  fmt::ChunkHeader h{};
+  if (chunk.size() < sizeof h) throw Error(ExitCode::kInternal, "ChunkBuilder::section_data: no chunk");
+  std::memcpy(&h, chunk.data(), sizeof h);
+  if (index >= h.section_count) throw Error(ExitCode::kInternal, "ChunkBuilder::section_data: no such section");
+  fmt::SectionEntry e{};
+  std::memcpy(&e, chunk.data() + sizeof h + index * sizeof e, sizeof e);
+  return chunk.data() + e.offset;
+}
+
 namespace {
 uint64_t align64(uint64_t v) { return (v + 63) / 64 * 64; }
 }  // namespace
@@ -61,7 +78,7 @@ void ChunkBuilder::finish_into(AlignedBytes& out) const {
     std::memset(out.data() + written, 0, table[i].offset - written);
     written = table[i].offset;
     for (const Piece& piece : sections_[i].pieces) {
-      std::memcpy(out.data() + written, piece.data, piece.bytes);
+      if (piece.data) std::memcpy(out.data() + written, piece.data, piece.bytes);  // null: add_reserved
       written += piece.bytes;
     }
   }

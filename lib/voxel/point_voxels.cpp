@@ -50,9 +50,8 @@ struct Effective {
   }
 };
 
-Effective effective(const Instance& inst, const Aabb& local_bounds) {
+Effective effective(const fmt::InstanceRecord& rec, const Aabb& local_bounds) {
   Effective e;
-  const fmt::InstanceRecord rec = make_instance_record(inst);
   if (!record_invertible(rec)) return e;  // singular: the tracer never hits it
   // The tracer's world->local map (SPEC §2.4): M = [L^-1 | -L^-1·T] with the float L^-1 and double T.
   // Its exact inverse is [(L^-1)^-1 | T]: the translation is T itself, the linear part inverted here.
@@ -177,19 +176,18 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
   });
 }
 
-PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes, const BatchingPoint& bp,
-                          const VoxelOptions& o) {
+PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
+                          const fmt::InstanceRecord* records, const BatchingPoint& bp, const VoxelOptions& o) {
   PointProxy out;
   // Error terms first: they size the grid.
   std::vector<Effective> piece_eff(bp.pieces.size()), inst_eff(bp.instances.size());
   double margin = 0, kappa = 1;
   for (size_t i = 0; i < bp.pieces.size(); ++i) {
     const UniquePiece& pc = plan.pieces[bp.pieces[i]];
-    piece_eff[i] = effective(scene.instances[pc.instance], pc.bounds);
+    piece_eff[i] = effective(records[pc.instance], pc.bounds);
   }
   for (size_t i = 0; i < bp.instances.size(); ++i) {
-    const Instance& in = scene.instances[bp.instances[i]];
-    inst_eff[i] = effective(in, meshes[in.mesh].bounds);
+    inst_eff[i] = effective(records[bp.instances[i]], meshes[scene.instances[bp.instances[i]].mesh].bounds);
   }
   for (const auto* v : {&piece_eff, &inst_eff})
     for (const Effective& e : *v)

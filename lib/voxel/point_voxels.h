@@ -56,8 +56,9 @@ struct PointProxy {
 // geometry Minv(v) (|·| infinity norms, M_T its translation, v the local vertices): the local ray is
 // rounded to float (½u relative in origin and direction) and the watertight test decides within a
 // few u of the larger of |org_local| and |v|; 16 leaves a factor of four. The first term is the
-// grid's `margin`, the factor of |org| its `ray_rel`.
-PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes, const BatchingPoint& point,
-                          const VoxelOptions& options);
+// grid's `margin`, the factor of |org| its `ray_rel`. `records`: make_instance_records of
+// scene.instances (the package's instance table), the records the tracer moves rays with.
+PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
+                          const fmt::InstanceRecord* records, const BatchingPoint& point, const VoxelOptions& options);
 
 }  // namespace rtp::voxel
