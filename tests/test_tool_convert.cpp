@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 
 #include <fstream>
+#include <map>
 
 #include "gltf_builder.h"
 
@@ -150,6 +151,39 @@ TEST_F(Convert, UsageErrors) {
   EXPECT_EQ(spacing.code, 1);
   EXPECT_NE(spacing.err.find("--spacing: expected a number from 0.001 to 100000, got nan"), std::string::npos) << spacing.err;
   EXPECT_FALSE(fs::exists(dir / "g.glb"));
+}
+
+// zstd's fast (negative) levels: a valid package, smaller than stored chunks, whose chunks decompress to
+// the same bytes as level 1's (same hits for the same rays); below -7 and above 22 refused.
+TEST_F(Convert, FastZstdLevels) {
+  const std::string p = (source_dir() / "samples/generated/gallery.glb").string();
+  std::map<int, uintmax_t> bytes;
+  std::map<int, std::string> hits;
+  for (const int level : {0, 1, -3}) {
+    const std::string pkg = (dir / ("z" + std::to_string(level) + ".rtp")).string();
+    const ToolRun c = convert("-q --zstd-level " + std::to_string(level) + " " + p + " -o " + pkg, dir);
+    ASSERT_EQ(c.code, 0) << level << ": " << c.err;
+    bytes[level] = fs::file_size(pkg);
+    const std::string bin = std::string(RTP_BINARY_DIR) + "/";
+    const fs::path rays = dir / "r.rays", out = dir / ("h" + std::to_string(level) + ".hits");
+    ASSERT_EQ(std::system((bin + "rtpack-inspect --verify " + pkg + " > /dev/null").c_str()), 0) << level;
+    ASSERT_EQ(std::system((bin + "rtpack-trace " + pkg + " --make-camera-rays 16x16 --rays " + rays.string() + " --hits " +
+                           out.string() + " > /dev/null").c_str()),
+              0)
+        << level;
+    hits[level] = slurp(out);
+  }
+  EXPECT_LT(bytes[-3], bytes[0]);
+  EXPECT_LT(bytes[1], bytes[-3]);  // the fast level trades bytes for speed
+  EXPECT_FALSE(hits[1].empty());
+  EXPECT_EQ(hits[-3], hits[1]);
+  EXPECT_EQ(hits[0], hits[1]);
+  for (const char* bad : {"-8", "23"}) {
+    const ToolRun r = convert(std::string("-q --zstd-level ") + bad + " " + p + " -o " + (dir / "bad.rtp").string(), dir);
+    EXPECT_EQ(r.code, 1) << bad;
+    EXPECT_NE(r.err.find("not in range -7 to 22"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "bad.rtp"));
+  }
 }
 
 TEST_F(Convert, WarningsGoToStderr) {

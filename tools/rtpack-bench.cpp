@@ -51,6 +51,7 @@
 #include "oracle/compare.h"
 #include "oracle/embree_oracle.h"
 #include "oracle/rays.h"
+#include "package/package.h"  // kMinZstdLevel
 #include "scene/import.h"
 #include "trace/trace.h"
 #include "malloc_policy.h"
@@ -416,8 +417,10 @@ int main(int argc, char** argv) {
       ->needs(convert_flag);
   app.add_option("--bvh-width", conv.bvh_width, "--convert: BVH width W, 4, 8 or 16 (leaf width W, 8 for W=16; default 8)")
       ->check(CLI::IsMember({4, 8, 16}))->needs(convert_flag);
-  app.add_option("--zstd-level", conv.zstd_level, "--convert: zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) + ")")
-      ->check(CLI::Range(0, 22))->needs(convert_flag);
+  app.add_option("--zstd-level", conv.zstd_level,
+                 "--convert: zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) + "..-1 zstd's fast levels (default " +
+                     std::to_string(rtp::kDefaultZstdLevel) + ")")
+      ->check(CLI::Range(rtp::kMinZstdLevel, 22))->needs(convert_flag);
   app.add_flag("--zstd-huffman-literals{false}", conv.zstd_raw_literals,
                "--convert: Huffman-code zstd's literals in batching points and mesh segments too (as rtpack-convert)")
       ->needs(convert_flag);

@@ -67,8 +67,11 @@ int main(int argc, char** argv) {
                  "vertex attributes to store as separate per-chunk streams: normal, uv (comma-separated; default none)")
       ->delimiter(',')
       ->check(CLI::IsMember({"normal", "uv"}));
-  app.add_option("--zstd-level", zstd_level, "zstd level per chunk, 0 = store (default " + std::to_string(rtp::kDefaultZstdLevel) +
-                                                 "; 6: 11-12 % smaller, chunks stage 1.5-1.7x slower; 19: 20-22 % smaller, 12-28x slower; docs/package/zstd.md)")->check(CLI::Range(0, 22));
+  app.add_option("--zstd-level", zstd_level,
+                 "zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) + "..-1 zstd's fast levels (default " +
+                     std::to_string(rtp::kDefaultZstdLevel) +
+                     "; 6: 11-12 % smaller, chunks stage 1.5-1.7x slower; 19: 20-22 % smaller, 12-28x slower; docs/package/zstd.md)")
+      ->check(CLI::Range(rtp::kMinZstdLevel, 22));
   bool huffman_literals = false;
   app.add_flag("--zstd-huffman-literals", huffman_literals,
                "Huffman-code zstd's literals in batching points and mesh segments too (default: raw there, 4 % larger, "

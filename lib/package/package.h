@@ -13,6 +13,10 @@
 
 namespace rtp {
 
+// zstd's fast levels (negative, its --fast=N) go down to -131072; the options stop at -7, where the
+// instance-heavy chunks already shrink little (docs/package/zstd.md).
+inline constexpr int kMinZstdLevel = -7;
+
 class PackageWriter {
  public:
   // Writes through an OutputFile (core/output_file.h): nothing appears at `path` before finish(),
@@ -22,7 +26,8 @@ class PackageWriter {
   PackageWriter(const PackageWriter&) = delete;
   PackageWriter& operator=(const PackageWriter&) = delete;
 
-  // Compresses (zstd level > 0, or stores raw when level == 0 or compression does not help),
+  // Compresses (zstd level != 0: 1..22, or -1..kMinZstdLevel for zstd's fast levels, its --fast=N; stores
+  // raw when level == 0 or compression does not help),
   // checksums and appends one chunk at the next 4 KiB boundary. Chunks are written in call order.
   const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
   // The same in two steps, so compression can run on other threads: compress() is thread-safe

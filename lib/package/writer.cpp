@@ -13,8 +13,9 @@
 namespace rtp {
 
 PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(path), level_(zstd_level) {
-  if (zstd_level < 0 || zstd_level > ZSTD_maxCLevel())
-    throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be 0.." + std::to_string(ZSTD_maxCLevel()));
+  if (zstd_level < kMinZstdLevel || zstd_level > ZSTD_maxCLevel())
+    throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be " + std::to_string(kMinZstdLevel) +
+                                      ".." + std::to_string(ZSTD_maxCLevel()) + " (0 stores raw, negative levels are zstd's fast ones)");
 }
 
 PackageWriter::~PackageWriter() = default;
@@ -23,7 +24,7 @@ void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { o
 AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used, bool raw_literals,
                                     int min_match) {
   used = fmt::Compression::kNone;
-  if (level > 0 && size > 0) {
+  if (level != 0 && size > 0) {  // negative: zstd's fast levels (--fast=N)
     // A per-thread scratch of compressBound bytes, reused, never zero-filled (AlignedBytes): a fresh
     // zero-filled one per chunk was faulted in and cleared every time (2 % of a convert in memset alone).
     thread_local AlignedBytes scratch;
