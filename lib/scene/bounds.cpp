@@ -159,41 +159,58 @@ Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t,
   const size_t n = scene.instances.size();
   auto usable = [&](size_t i) { return !trees[scene.instances[i].mesh]->empty(); };
   constexpr double kNone = -std::numeric_limits<double>::infinity();
-  // Branch and bound over the instances too, one face of the scene box at a time: the scene's face is
-  // the maximum of the instances' exact faces, and an instance whose root-box bound does not exceed an
-  // exact face already found cannot raise it. So only the instances near the scene's boundary run the
-  // point-tree search; the result is the same maximum as evaluating every instance, for any thread count.
-  std::array<double, 6> face;
-  for (int side = 0; side < 6; ++side) {
-    // Seed: the exact face of the instance with the largest bound (ties: lowest index).
-    struct Best { double v; size_t i; };
-    const Best seed = tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(0, n, 4096), Best{kNone, n},
-        [&](const tbb::blocked_range<size_t>& r, Best b) {
-          for (size_t i = r.begin(); i != r.end(); ++i) {
-            if (!usable(i)) continue;
-            const double v = side_value(*trees[scene.instances[i].mesh], scene.instances[i], side, false);
-            if (v > b.v || (v == b.v && i < b.i)) b = {v, i};
+  // Branch and bound over the instances too, for the six faces of the scene box at once: the scene's
+  // face is the maximum of the instances' exact faces, and an instance whose root-box bound does not
+  // exceed an exact face already found cannot raise it. So only the instances near the scene's
+  // boundary run the point-tree search; the result is the same maximum as evaluating every instance,
+  // for any thread count. Two passes over the instances (a face at a time made twelve: 10^6 instances
+  // of 128 bytes each, most of the import of a 10^6-instance forest).
+  using Faces = std::array<double, 6>;
+  // Seeds: per face, the exact face of the instance with the largest bound (ties: lowest index).
+  struct Seeds { Faces v; std::array<size_t, 6> i; };
+  Seeds none;
+  none.v.fill(kNone);
+  none.i.fill(n);
+  const Seeds seed = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 4096), none,
+      [&](const tbb::blocked_range<size_t>& r, Seeds b) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          if (!usable(i)) continue;
+          const PointSet& t = *trees[scene.instances[i].mesh];
+          for (int side = 0; side < 6; ++side) {
+            const double v = side_value(t, scene.instances[i], side, false);
+            if (v > b.v[side] || (v == b.v[side] && i < b.i[side])) b.v[side] = v, b.i[side] = i;
           }
-          return b;
-        },
-        [](Best a, Best b) { return b.v > a.v || (b.v == a.v && b.i < a.i) ? b : a; });
-    if (seed.i == n) return Aabb{};  // no instance has a vertex
-    const double start = side_value(*trees[scene.instances[seed.i].mesh], scene.instances[seed.i], side, true);
-    face[side] = tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(0, n, 1024), start,
-        [&](const tbb::blocked_range<size_t>& r, double best) {
-          for (size_t i = r.begin(); i != r.end(); ++i) {
-            if (!usable(i)) continue;
-            const PointSet& t = *trees[scene.instances[i].mesh];
-            if (side_value(t, scene.instances[i], side, false) <= best) continue;
-            best = std::max(best, side_value(t, scene.instances[i], side, true));
-          }
-          return best;
-        },
-        [](double a, double b) { return std::max(a, b); });
-    if (progress) progress(n * uint64_t(side + 1) / 6, n);
-  }
+        }
+        return b;
+      },
+      [](Seeds a, const Seeds& b) {
+        for (int side = 0; side < 6; ++side)
+          if (b.v[side] > a.v[side] || (b.v[side] == a.v[side] && b.i[side] < a.i[side])) a.v[side] = b.v[side], a.i[side] = b.i[side];
+        return a;
+      });
+  if (seed.i[0] == n) return Aabb{};  // no instance has a vertex
+  if (progress) progress(n / 2, n);
+  Faces start;
+  for (int side = 0; side < 6; ++side)
+    start[side] = side_value(*trees[scene.instances[seed.i[side]].mesh], scene.instances[seed.i[side]], side, true);
+  const Faces face = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 1024), start,
+      [&](const tbb::blocked_range<size_t>& r, Faces best) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          if (!usable(i)) continue;
+          const PointSet& t = *trees[scene.instances[i].mesh];
+          for (int side = 0; side < 6; ++side)
+            if (side_value(t, scene.instances[i], side, false) > best[side])
+              best[side] = std::max(best[side], side_value(t, scene.instances[i], side, true));
+        }
+        return best;
+      },
+      [](Faces a, const Faces& b) {
+        for (int side = 0; side < 6; ++side) a[side] = std::max(a[side], b[side]);
+        return a;
+      });
+  if (progress) progress(n, n);
   Aabb all;
   for (int row = 0; row < 3; ++row) {
     all.hi[row] = face[row];

@@ -93,8 +93,9 @@ struct Scene {
 // Exact world bounds of all instances: for every instance, the extreme vertices along each world axis
 // of the stored transform (branch and bound over a per-mesh point tree, not a transformed box; only
 // instances whose root-box bound can still raise a face of the scene box are searched).
-// `progress(done, total)` (optional) is called from the calling thread after each of the six faces,
-// `done` in instances' worth of the work (total = the instance count).
+// `progress(done, total)` (optional) is called from the calling thread after each of its two passes
+// over the instances (all six faces at once), `done` in instances' worth of the work (total = the
+// instance count).
 Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t, uint64_t)>& progress = {});
 // The same for one instance (builds that mesh's point tree: for diagnostics, not for loops).
 Aabb compute_instance_world_bounds(const Scene& scene, size_t instance);
