@@ -5,7 +5,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <csignal>
@@ -176,12 +175,6 @@ void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
     p += n;
     size -= size_t(n);
     offset += uint64_t(n);
-  }
-  written_end_ = std::max(written_end_, offset);
-  if (!device_ && written_end_ - writeback_from_ >= kWritebackBytes) {
-    // Best effort: an error here is fsync's to report in commit().
-    (void)::sync_file_range(fd_, off_t(writeback_from_), off_t(written_end_ - writeback_from_), SYNC_FILE_RANGE_WRITE);
-    writeback_from_ = written_end_;
   }
 }
 

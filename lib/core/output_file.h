@@ -32,10 +32,6 @@ class OutputFile {
   OutputFile& operator=(const OutputFile&) = delete;
 
   // pwrite of all `size` bytes at `offset` (a device: written as asked). Throws Error(kOutput).
-  // Every kWritebackBytes written, the kernel is asked to start writing them to disk
-  // (sync_file_range, not waiting), so commit()'s fsync waits for the last few only: a 215 MB
-  // package's fsync (forest-1m, 2 threads) waited 0.48 s for writeback that only began there, now
-  // 0.21 s. The convert's total gains less where the cores are busy: writeback costs kernel time too.
   void write_at(uint64_t offset, const void* data, size_t size);
   // Sets the final size (regular files only; a device is left alone).
   void set_size(uint64_t size);
@@ -48,9 +44,7 @@ class OutputFile {
  private:
   void link_into_place();
   std::string path_, dir_, name_, named_tmp_;  // named_tmp_: the fallback's temporary (in dir_)
-  static constexpr uint64_t kWritebackBytes = uint64_t(1) << 20;
   int fd_ = -1, dir_fd_ = -1;
-  uint64_t written_end_ = 0, writeback_from_ = 0;  // [writeback_from_, written_end_): not yet handed to writeback
   bool device_ = false, committed_ = false;
 };
 
