@@ -443,6 +443,9 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
   if (o.dag && n_pts > 0) header_flags |= fmt::kFlagDag;  // no point, no grid and no pool (metadata "dag" alike)
   beside.wait();
+  // Compressed, and no batching point reads its records any more: 112 MB back before the late stage.
+  for (Job& j : early) j.source = nullptr;
+  instance_table = AlignedBytes();
   std::vector<Job> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
   std::vector<Job*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
   for (size_t i = 0; i < kResidentBeforePoints; ++i) order.push_back(&early[i]);
