@@ -14,7 +14,7 @@
 namespace rtp {
 
 // zstd's fast levels (negative, its --fast=N) go down to -131072; the options stop at -7, where the
-// instance-heavy chunks already shrink little (docs/package/zstd.md).
+// instance-heavy chunks already shrink little (docs/user-guide.md gives the measured trade).
 inline constexpr int kMinZstdLevel = -7;
 
 class PackageWriter {
