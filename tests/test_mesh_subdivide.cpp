@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "mesh/mesh.h"
+#include "mesh/prepare.h"
 #include "mesh/shapes.h"
 
 #if __has_include("scene/import.h") && !defined(RTP_MESH_TESTS_NO_IMPORT)
@@ -191,6 +192,32 @@ TEST(MeshSubdivide, AdaptiveLargestInstanceScaleDrivesTheLevel) {
   SubdivideReport r1 = subdivide_to_length(small, target);
   EXPECT_LT(r1.meshes[0].levels, mr.levels);
   EXPECT_LT(longest_edge(small.meshes[0]), target);
+}
+
+// prepare_scene refuses a uniform subdivision beyond its memory size before any work and runs one
+// within it (PrepareOptions::memory_bytes; 0 = the machine's, which must be known here).
+TEST(MeshSubdivide, UniformSubdivisionBeyondMemoryIsRefused) {
+  const Scene s = two_instance_scene(1);  // one icosahedron: 20 triangles
+  PrepareOptions o;
+  o.subdivide_levels = 3;  // 1280 triangles: 113920 bytes at 89 each
+  o.memory_bytes = 113000;
+  Scene refused = s;
+  try {
+    prepare_scene(refused, o);
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ExitCode::kUsage);
+    EXPECT_NE(std::string(e.what()).find("--subdivide 3: would make 1280 triangles from 20, about 0.0 GiB while refining "
+                                         "(89 bytes per triangle)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(refused.meshes[0].triangle_count(), 20u);  // nothing refined
+  o.memory_bytes = 114000;
+  Scene ok = s;
+  prepare_scene(ok, o);
+  EXPECT_EQ(ok.meshes[0].triangle_count(), 1280u);
+  EXPECT_GT(machine_memory_bytes(), uint64_t(1) << 28);
 }
 
 TEST(MeshSubdivide, AdaptiveLeavesShortAndUninstancedMeshesUntouched) {

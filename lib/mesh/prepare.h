@@ -13,7 +13,12 @@ struct PrepareOptions {
   int subdivide_levels = 0;   // uniform Loop levels (--subdivide N)
   double subdivide_to = 0;    // > 0: adaptive, longest world edge below this (--subdivide-to LENGTH)
   int subdivide_max_levels = 6;
+  // Memory a uniform subdivision may need, in bytes; 0 = this machine's (machine_memory_bytes()).
+  uint64_t memory_bytes = 0;
 };
+
+// Physical memory, or the cgroup's (v2 memory.max) when that is lower; 0 when unknown.
+uint64_t machine_memory_bytes();
 
 struct PrepareReport {
   CleanReport clean;               // summed over meshes
@@ -26,7 +31,9 @@ struct PrepareReport {
 };
 
 // Cleans, subdivides, drops emptied meshes (and their instances, with a warning in scene.warnings)
-// and recomputes the exact world bounds when the geometry changed.
+// and recomputes the exact world bounds when the geometry changed. A uniform subdivision whose
+// refined meshes would need more than options.memory_bytes (kSubdivideBytesPerTriangle each) is
+// refused with Error(kUsage) before any work.
 PrepareReport prepare_scene(Scene& scene, const PrepareOptions& options);
 
 nlohmann::json prepare_report_json(const PrepareReport& report);
