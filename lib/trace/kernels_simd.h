@@ -34,6 +34,10 @@ struct SimdKernels {
                                               const uint8_t* order, uint32_t rest) {
     rtp::RTP_ISA_NS::push_ordered8(dst, child, dist, order, rest);
   }
+  RTP_KERNEL_INLINE static void push_ordered8_refs(uint32_t* dst, const uint32_t* child, const uint8_t* order,
+                                                   uint32_t rest) {
+    rtp::RTP_ISA_NS::push_ordered8_refs(dst, child, order, rest);
+  }
   template <int B>
   RTP_KERNEL_INLINE static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_simd<Vec<B>, B, false>(b, r, tfar, out);

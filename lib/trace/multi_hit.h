@@ -22,6 +22,7 @@ inline bool hit_before(const fmt::Hit& a, const fmt::Hit& b) {
 // beyond it fails the leaf test. A lane that repeats a short block's last triangle reports the same
 // (instance, prim) again and is dropped.
 struct MultiSink {
+  static constexpr bool kFixedFar = false;  // the N-th hit's t culls
   fmt::Hit* list;
   uint32_t cap;
   uint32_t count;
@@ -50,6 +51,7 @@ struct MultiSink {
 // The baseline, Gribble 2016 §1 "naive multi-hit" (all-hit traversal): every hit in [tnear, tfar], tfar
 // never shrinks; sorted and cut to N afterwards.
 struct CollectSink {
+  static constexpr bool kFixedFar = false;  // the baseline keeps the general walk
   std::vector<fmt::Hit>* all;
   float t;
   float& tfar() { return t; }

@@ -137,4 +137,16 @@ RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const flo
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst) + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
 }
 
+// The same push for a walk whose stack keeps references only (walk_octant_stack's kFixedFar): the
+// children far to near, plus garbage up to 8 references (dst has room for 8).
+RTP_KERNEL_INLINE void push_ordered8_refs(uint32_t* dst, const uint32_t* child, const uint8_t* order, uint32_t rest) {
+  const __m256i ord = _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))),
+                                       _mm256_set1_epi32(15));
+  const __m256i pick =
+      _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
+  const __m256i lanes = _mm256_permutevar8x32_epi32(ord, pick);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst),
+                      _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes));
+}
+
 }  // namespace rtp::RTP_ISA_NS

@@ -25,11 +25,11 @@ struct Closest {
   float u, v;
 };
 
-template <TraversalOrder O, class K, int W, class LeafFn, class PrefetchFn>
+template <TraversalOrder O, class K, int W, bool kFixedFar = false, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
                  LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   if constexpr (O == TraversalOrder::kOctantStack)
-    return walk_octant_stack<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
+    return walk_octant_stack<K, W, kFixedFar>(nodes, root, ray, tfar, leaf, prefetch_leaf);
   else
     return walk_active_list<K, W>(nodes, root, ray, tfar, leaf, prefetch_leaf);
 }
@@ -37,6 +37,7 @@ RTP_KERNEL_INLINE Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const 
 // What a walk does with one leaf block's hits: keep the closest (ClosestSink), stop at any (AnySink), or
 // keep the N closest (multi_hit.h). tfar() is the live far distance both levels cull with.
 struct ClosestSink {
+  static constexpr bool kFixedFar = false;  // each hit found shortens tfar
   Closest best;
   float& tfar() { return best.t; }
   template <class K, int B>
@@ -57,6 +58,7 @@ struct ClosestSink {
 };
 
 struct AnySink {
+  static constexpr bool kFixedFar = true;  // t never changes: the first hit ends the walk
   float t;
   float& tfar() { return t; }
   template <class K, int B>
@@ -86,7 +88,7 @@ RTP_KERNEL_INLINE Walk walk_mesh_inline(const SceneView<W, B>& s, uint32_t id, u
     const char* p = reinterpret_cast<const char*>(mesh.blocks + fmt::ChildRef::first_block(leaf_ref));
     for (size_t off = 0; off < sizeof(fmt::LeafBlock<B>); off += 64) __builtin_prefetch(p + off);
   };
-  return walk<O, K, W>(mesh.nodes, root, box, sink.tfar(), block_leaf, prefetch_block);
+  return walk<O, K, W, Sink::kFixedFar>(mesh.nodes, root, box, sink.tfar(), block_leaf, prefetch_block);
 }
 
 // The same, out of line: one copy per (ISA, order, W, B, sink) that every instance visit calls (issue 11:
@@ -174,7 +176,7 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
   }
   setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
   auto instance_leaf = [&](uint32_t ref) -> Walk { return instance_leaf_one<K, O>(s, ref, ray, world, sink); };
-  return walk<O, K, W>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
+  return walk<O, K, W, Sink::kFixedFar>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
 }
 
 template <class K, TraversalOrder O, bool kAny, int W, int B>

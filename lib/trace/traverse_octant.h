@@ -1,6 +1,8 @@
 #pragma once
 // Depth-first traversal of one W-wide BVH level in the node's precomputed octant order, with a
 // fixed-size stack of (child, entry distance). Shared by the instance level and the mesh level.
+#include <type_traits>
+
 #include "formats/bvh_layout.h"
 #include "trace/kernel_common.h"
 
@@ -10,13 +12,17 @@ namespace rtp::RTP_ISA_NS {
 // taken next, the others pushed far to near with their entry distance; a popped entry whose distance
 // is beyond the (padded) current tfar is dropped. `tfar` is live: the leaf callback may shorten it.
 // leaf(ref) returns kDone to go on, kStop/kOverflow to end the walk with that status.
-template <class K, int W, class LeafFn, class PrefetchFn>
+// kFixedFar: the leaves never shorten `tfar` (any-hit walks stop at the first hit instead), so every
+// pushed child, hit with entry <= pad_far(tfar), passes the pop test: the stack keeps references only
+// (after Embree's any-hit traversal, which pushes no distances) and pops without a test.
+template <class K, int W, bool kFixedFar = false, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
                               const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
-  struct Entry {
+  struct Pair {
     uint32_t ref;
     float dist;
   };
+  using Entry = std::conditional_t<kFixedFar, uint32_t, Pair>;
   // Each inner level adds at most W - 1 entries (the nearest child is not pushed).
   constexpr int kCapacity = (W - 1) * detail::kMaxDepth + 1;
   Entry stack[kCapacity + 8];  // push_ordered8 writes 8 entries, the pushed ones first
@@ -43,27 +49,37 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
         om &= om - 1;
         if (sp + bit_count(om) > kCapacity) return Walk::kOverflow;
         if constexpr (W == 8 && K::kPushOrdered8) {
-          static_assert(sizeof(Entry) == 8);
-          K::push_ordered8(stack + sp, node.child, dist, order, om);
+          if constexpr (kFixedFar)
+            K::push_ordered8_refs(stack + sp, node.child, order, om);
+          else
+            K::push_ordered8(stack + sp, node.child, dist, order, om);
           sp += bit_count(om);
         } else {
           while (om) {
             const int i = highest_bit(om);
             om &= ~(1u << i);
             const int lane = order[i] & 15;
-            stack[sp++] = {node.child[lane], dist[lane]};
+            if constexpr (kFixedFar)
+              stack[sp++] = node.child[lane];
+            else
+              stack[sp++] = {node.child[lane], dist[lane]};
           }
         }
         cur = node.child[order[nearest] & 15];
         continue;
       }
     }
-    for (;;) {
+    if constexpr (kFixedFar) {
       if (sp == 0) return Walk::kDone;
-      const Entry e = stack[--sp];
-      if (e.dist <= pad_far(tfar)) {
-        cur = e.ref;
-        break;
+      cur = stack[--sp];
+    } else {
+      for (;;) {
+        if (sp == 0) return Walk::kDone;
+        const Entry e = stack[--sp];
+        if (e.dist <= pad_far(tfar)) {
+          cur = e.ref;
+          break;
+        }
       }
     }
   }
