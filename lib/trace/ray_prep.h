@@ -46,16 +46,19 @@ RTP_KERNEL_INLINE bool direction_usable(const float dir[3]) {
 // The three reciprocals in one SSE division (issue 11: three scalar divides ran per ray and per instance
 // visit). IEEE division gives what the scalar form gave: ±inf for ±0 (sign kept), ±inf for a denormal
 // whose reciprocal overflows, 1/x rounded to nearest otherwise; the signs come from the sign bits.
+// The BoxRay is written as two 16-byte rows, (org, ·) then (rcp, tnear), as store_box_rays4 does (issue 11:
+// field by field, the 16-byte loads that read it next — move_ray_by_axes's rcp, the compiler's merged
+// loads of org — waited for a failed store-to-load forward; on far.glb's shadow rays, half of trace_one's
+// time sat on one such load).
 RTP_KERNEL_INLINE void setup_box_ray(const float org[3], const float dir[3], float tnear, detail::BoxRay* out) {
+  static_assert(offsetof(detail::BoxRay, rcp) == 12 && offsetof(detail::BoxRay, tnear) == 24);
   const __m128 d = _mm_setr_ps(dir[0], dir[1], dir[2], 1.0f);
-  alignas(16) float rcp[4];
-  _mm_store_ps(rcp, _mm_div_ps(_mm_set1_ps(1.0f), d));
-  for (int a = 0; a < 3; ++a) {
-    out->org[a] = org[a];
-    out->rcp[a] = rcp[a];
-  }
+  const __m128 rcp = _mm_div_ps(_mm_set1_ps(1.0f), d);
+  const __m128 rcp_t = _mm_shuffle_ps(rcp, _mm_unpackhi_ps(rcp, _mm_set1_ps(tnear)), _MM_SHUFFLE(1, 0, 1, 0));
+  float* b = reinterpret_cast<float*>(out);
+  _mm_storeu_ps(b, _mm_setr_ps(org[0], org[1], org[2], 0.0f));  // org, then rcp[0] (written next)
+  _mm_storeu_ps(b + 3, rcp_t);                                   // rcp[0..2], tnear
   out->octant = static_cast<uint8_t>(_mm_movemask_ps(d) & 7);
-  out->tnear = tnear;
 }
 
 // Woop, Benthin, Wald 2013 "Watertight Ray/Triangle Intersection" §3, per-ray pre-computation.
@@ -121,7 +124,8 @@ struct InstanceMove {
   }
   // Lane r computes (m[3r]·x + m[3r+1]·y) + m[3r+2]·z in double, then rounds to float, exactly as the
   // scalar form of transform_ray (issue 11: that form cost ~75 instructions per instance visit).
-  RTP_KERNEL_INLINE bool apply(const float org[3], const float dir[3], float out_org[3], float out_dir[3]) const {
+  // out_org and out_dir get 4 floats each, the 4th 0.
+  RTP_KERNEL_INLINE bool apply(const float org[3], const float dir[3], float out_org[4], float out_dir[4]) const {
     const __m256d rel = _mm256_sub_pd(_mm256_cvtps_pd(_mm_setr_ps(org[0], org[1], org[2], 0.0f)), t);
     const __m256d d = _mm256_cvtps_pd(_mm_setr_ps(dir[0], dir[1], dir[2], 0.0f));
     const __m256d o = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(rel, 0x00)),
@@ -135,11 +139,12 @@ struct InstanceMove {
     const int in_range = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(o, abs_mask), limit, _CMP_LE_OQ)) &
                          _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v, abs_mask), limit, _CMP_LE_OQ));
     if ((in_range & 7) != 7) return false;  // also NaN
-    alignas(16) float fo[4], fd[4];
-    const __m128 fdv = _mm256_cvtpd_ps(v);
-    _mm_store_ps(fo, _mm256_cvtpd_ps(o));
-    _mm_store_ps(fd, fdv);
-    for (int r = 0; r < 3; ++r) out_org[r] = fo[r], out_dir[r] = fd[r];
+    // Whole rows, lane 3 masked to +0 (it holds ±0 products), so that the loads that read them next are
+    // forwarded from one store (see setup_box_ray).
+    const __m128 keep3 = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+    const __m128 fdv = _mm_and_ps(_mm256_cvtpd_ps(v), keep3);
+    _mm_storeu_ps(out_org, _mm_and_ps(_mm256_cvtpd_ps(o), keep3));
+    _mm_storeu_ps(out_dir, fdv);
     return (_mm_movemask_ps(_mm_cmpneq_ps(fdv, _mm_setzero_ps())) & 7) != 0;  // direction_usable
   }
 };
@@ -260,8 +265,8 @@ struct InstanceMove4 {
 // (issue 11: a float 3x4 inverse put a small instance at 3e6 up to 0.25 units off). org - T is exact
 // to 2^-53 of the larger magnitude and products of floats are exact in double, so the only rounding
 // that matters is the final one to float, relative to the local coordinates.
-RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[3],
-                                     float out_dir[3]) {
+RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const float org[3], const float dir[3], float out_org[4],
+                                     float out_dir[4]) {
 #if defined(__AVX2__)
   return InstanceMove(inst).apply(org, dir, out_org, out_dir);
 #else
@@ -275,6 +280,7 @@ RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const floa
     out_org[r] = static_cast<float>(o);
     out_dir[r] = static_cast<float>(d);
   }
+  out_org[3] = 0.0f, out_dir[3] = 0.0f;
   return direction_usable(out_dir);
 #endif
 }

@@ -185,7 +185,9 @@ inline TraceStats trace_batch(const SceneView<W, B>& s, const fmt::Ray* rays, fm
   TraceStats stats;
   stats.rays = n;
   for (size_t i = 0; i < n; ++i) {
-    const fmt::Ray ray = rays[i];
+    // Read in place: a copy was stored as two 16-byte halves that ray_is_valid's one 32-byte load then
+    // waited for (a failed store-to-load forward, a third of far.glb's shadow-ray time).
+    const fmt::Ray& ray = rays[i];
     std::conditional_t<kAny, AnySink, ClosestSink> sink;
     if constexpr (kAny)
       sink.t = ray.tfar;
