@@ -22,12 +22,13 @@ std::string slurp(const fs::path& p) {
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
 }
 
-ToolRun convert(const std::string& args, const fs::path& dir) {
-  const std::string cmd = std::string(RTP_BINARY_DIR) + "/rtpack-convert " + args + " > " + (dir / "out").string() +
+ToolRun tool(const std::string& name, const std::string& args, const fs::path& dir) {
+  const std::string cmd = std::string(RTP_BINARY_DIR) + "/" + name + " " + args + " > " + (dir / "out").string() +
                           " 2> " + (dir / "err").string();
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
 }
+ToolRun convert(const std::string& args, const fs::path& dir) { return tool("rtpack-convert", args, dir); }
 
 class Convert : public ::testing::Test {
  protected:
@@ -156,13 +157,15 @@ TEST_F(Convert, UsageErrors) {
     EXPECT_NE(r.err.find("of memory here; use fewer levels"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "h.rtp"));
   }
-  const std::string make = std::string(RTP_BINARY_DIR) + "/rtpack-make-scene gallery --count 2 --spacing nan -o " +
-                           (dir / "g.glb").string() + " 2> " + (dir / "err").string();
-  const int status = std::system(make.c_str());
-  const ToolRun spacing{WIFEXITED(status) ? WEXITSTATUS(status) : -1, "", slurp(dir / "err")};
+  const ToolRun spacing = tool("rtpack-make-scene", "gallery --count 2 --spacing nan -o " + (dir / "g.glb").string(), dir);
   EXPECT_EQ(spacing.code, 1);
   EXPECT_NE(spacing.err.find("--spacing: expected a number from 0.001 to 100000, got nan"), std::string::npos) << spacing.err;
   EXPECT_FALSE(fs::exists(dir / "g.glb"));
+  // --seed -1 used to make the forest of seed 2^64 - 1 (CLI11 wraps negative text into a uint64_t).
+  const ToolRun seed = tool("rtpack-make-scene", "forest --count 2 --seed -1 -o " + (dir / "f.glb").string(), dir);
+  EXPECT_EQ(seed.code, 1);
+  EXPECT_NE(seed.err.find("--seed: expected an integer from 0 to 18446744073709551615, got '-1'"), std::string::npos) << seed.err;
+  EXPECT_FALSE(fs::exists(dir / "f.glb"));
 }
 
 // zstd's fast (negative) levels: a valid package, smaller than stored chunks, whose chunks decompress to
@@ -172,12 +175,12 @@ TEST_F(Convert, FastZstdLevels) {
   std::map<int, uintmax_t> bytes;
   std::map<int, std::string> hits;
   for (const int level : {0, 1, -3}) {
-    const std::string pkg = (dir / ("z" + std::to_string(level) + ".rtp")).string();
+    const std::string pkg = (dir / std::string("z").append(std::to_string(level)).append(".rtp")).string();
     const ToolRun c = convert("-q --zstd-level " + std::to_string(level) + " " + p + " -o " + pkg, dir);
     ASSERT_EQ(c.code, 0) << level << ": " << c.err;
     bytes[level] = fs::file_size(pkg);
     const std::string bin = std::string(RTP_BINARY_DIR) + "/";
-    const fs::path rays = dir / "r.rays", out = dir / ("h" + std::to_string(level) + ".hits");
+    const fs::path rays = dir / "r.rays", out = dir / std::string("h").append(std::to_string(level)).append(".hits");
     ASSERT_EQ(std::system((bin + "rtpack-inspect --verify " + pkg + " > /dev/null").c_str()), 0) << level;
     ASSERT_EQ(std::system((bin + "rtpack-trace " + pkg + " --make-camera-rays 16x16 --rays " + rays.string() + " --hits " +
                            out.string() + " > /dev/null").c_str()),

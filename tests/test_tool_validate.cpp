@@ -249,6 +249,17 @@ TEST(ValidateTool, UsageErrorsAreClear) {
   const ToolResult unit = run_tool("rtpack-validate", {pkg, "--memory-budget", "12 parsecs"}, dir);
   EXPECT_EQ(unit.code, 1);
   EXPECT_NE(unit.err.find("--memory-budget 12 parsecs"), std::string::npos) << unit.err;
+  // An explicit empty --kinds used to validate the default kinds, and --seed -1 ran as seed 2^64 - 1.
+  const ToolResult none = run_tool("rtpack-validate", {pkg, "--kinds", ""}, dir);
+  EXPECT_EQ(none.code, 1);
+  EXPECT_NE(none.err.find("--kinds: empty"), std::string::npos) << none.err;
+  for (const char* seed : {"-1", "1.5", "18446744073709551616", ""}) {
+    const ToolResult bad = run_tool("rtpack-validate", {pkg, "--seed", seed, "--rays", "10"}, dir);
+    EXPECT_EQ(bad.code, 1) << seed;
+    EXPECT_NE(bad.err.find("expected an integer from 0 to 18446744073709551615"), std::string::npos) << seed << ": " << bad.err;
+  }
+  const ToolResult top = run_tool("rtpack-validate", {pkg, "--seed", "18446744073709551615", "--rays", "10"}, dir);
+  EXPECT_EQ(top.code, 0) << top.err;
   fs::remove_all(dir);
 }
 

@@ -34,6 +34,17 @@ inline CLI::Validator finite_range(double lo, double hi) {
   std::snprintf(text, sizeof text, "a number from %g to %g", lo, hi);
   return number_check(text, lo, false, hi);
 }
+// A decimal integer from 0 to 2^64 - 1 (--seed): CLI11 reads "-1" into a uint64_t as 2^64 - 1, silently.
+inline CLI::Validator unsigned_integer() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const std::string expected = "expected an integer from 0 to 18446744073709551615, got '" + text + "'";
+        if (text.empty() || text.size() > 20 || text.find_first_not_of("0123456789") != std::string::npos) return expected;
+        if (text.size() == 20 && text > "18446744073709551615") return expected;
+        return {};
+      },
+      "an integer >= 0");
+}
 // --chunk-target (rtpack-convert, rtpack-bench --convert): 1 to 2^53 triangles; beyond that the uint64
 // conversion saturated silently.
 inline CLI::Validator chunk_target_range() { return finite_range(1, 9007199254740992.0); }

@@ -399,7 +399,7 @@ int main(int argc, char** argv) {
                                 "--order or --rays still wins); takes minutes");
   app.add_option("--isa", isa, "best, scalar, avx2 or avx512 (default best)");
   app.add_option("--reps", cfg.reps, "timed repetitions, best taken (default 3)")->check(CLI::Range(1, 100));
-  app.add_option("--seed", cfg.seed, "ray generator seed (default 1)");
+  app.add_option("--seed", cfg.seed, "ray generator seed (default 1)")->check(rtp::tools::unsigned_integer());
   app.add_option("--primary-packet", cfg.primary_packet,
                  "rays per packet for primary rays: 4, 8, 16, or 0 for single rays (default 16; Embree's are timed in "
                  "16-ray packets)")

@@ -486,7 +486,7 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", o.output, "output .glb (appears only when complete)")->required();
   app.add_option("--count", o.count, "gallery: mesh nodes (default 12); forest: total instances (default 3000)")
       ->check(CLI::Range(int64_t(1), int64_t(100'000'000)));
-  app.add_option("--seed", o.seed, "forest random seed (default 1)");
+  app.add_option("--seed", o.seed, "forest random seed (default 1)")->check(rtp::tools::unsigned_integer());
   CLI::Option* unique = app.add_flag("--unique", o.unique,
                                      "forest: every instance its own mesh, a copy of its source with every vertex moved by "
                                      "a per-copy hash (unique geometry, no GPU instancing)");

@@ -163,11 +163,12 @@ int main(int argc, char** argv) {
                                      "(ROBUST) on it; without it, against the in-core tracer (byte for byte)");
   app.add_option("--allow-path", allow, "also read the source's external buffers from DIR (as rtpack-convert)");
   app.add_option("--rays", per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
-  app.add_option("--kinds", kinds_text, "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
+  CLI::Option* kinds_opt =
+      app.add_option("--kinds", kinds_text, "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
   app.add_option("--memory-budget", budget_text, "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
                                                  "a percentage of the package's on-demand bytes (default 25%, raised to the "
                                                  "package's minimum)");
-  app.add_option("--seed", seed, "ray seed (default 1)");
+  app.add_option("--seed", seed, "ray seed (default 1)")->check(rtp::tools::unsigned_integer());
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
   app.add_flag("--no-cull", no_cull, "do not cull with the batching points' DAGs");
   app.add_flag("--json", json, "print the table as JSON on stdout");
@@ -182,6 +183,8 @@ int main(int argc, char** argv) {
     const rtp::PackageReader reader(package);
     const bool embree = !source.empty();
     std::vector<std::string> kinds;
+    if (kinds_opt->count() > 0 && kinds_text.empty())
+      throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: empty; name at least one ray kind, or leave the option out for the default");
     if (kinds_text.empty()) {
       if (embree)
         for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
