@@ -300,5 +300,47 @@ TEST(TraceOutOfCore, SameHitsAndTheSameJsonKeys) {
   fs::remove_all(dir);
 }
 
+// DAG culling: off in core unless --cull (there it cost 1.3-2.4x the time it saved), on out of core unless
+// --no-cull; the hits are the same bytes every way, and the JSON says which and why.
+TEST(TraceCulling, OffInCoreOnOutOfCoreSameHits) {
+  const fs::path dir = temp_dir("trace_cull");
+  const std::string pkg = (dir / "gallery.rtp").string();
+  convert_to((source_dir() / "samples/generated/gallery.glb").string(), pkg, 8);
+  const std::string rays = (dir / "rays.bin").string();
+  const ToolResult base = run_tool("rtpack-trace", {pkg, "--make-camera-rays", "160x120", "--rays", rays, "--hits",
+                                                    (dir / "base.bin").string(), "--json"}, dir);
+  ASSERT_EQ(base.code, 0) << base.err;
+  const auto jb = nlohmann::json::parse(base.out);
+  EXPECT_EQ(jb["mode"], "in core");
+  EXPECT_EQ(jb["culling"], "off (in core; --cull tests the DAGs)");
+  EXPECT_EQ(jb["culled_visits"], 0);
+  EXPECT_GT(jb["batching_point_visits"].get<uint64_t>(), 0u);
+  struct Case {
+    std::vector<std::string> args;
+    const char* culling;
+    bool culls;  // in core every DAG is tested; out of core only small queues are (docs/user-guide.md)
+  };
+  for (const Case& c : {Case{{"--cull"}, "on", true}, Case{{"--memory-budget", "100%"}, "on", false},
+                        Case{{"--memory-budget", "100%", "--no-cull"}, "off (--no-cull)", false}}) {
+    std::vector<std::string> args = {pkg, "--rays", rays, "--hits", (dir / "h.bin").string(), "--json"};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    SCOPED_TRACE(c.args.back());
+    const ToolResult r = run_tool("rtpack-trace", args, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["culling"], c.culling);
+    // gallery's camera sees empty space in some points' boxes: in core, culling on culls visits.
+    if (c.culls) {
+      EXPECT_GT(j["culled_visits"].get<uint64_t>(), 0u);
+    }
+    EXPECT_EQ(slurp_file(dir / "base.bin"), slurp_file(dir / "h.bin"));
+    fs::remove(dir / "h.bin");
+  }
+  const ToolResult both = run_tool("rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "x.bin").string(), "--cull", "--no-cull"}, dir);
+  EXPECT_EQ(both.code, 1);
+  EXPECT_FALSE(fs::exists(dir / "x.bin"));
+  fs::remove_all(dir);
+}
+
 }}  // namespace
 }  // namespace rtp::test

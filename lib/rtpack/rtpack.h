@@ -95,7 +95,9 @@ enum class Isa { kBest, kScalar, kAvx2, kAvx512 };
 
 struct TraceOptions {
   Isa isa = Isa::kBest;  // kBest: the widest this CPU runs; asking for more than it runs throws
-  bool cull = true;      // test batching points' culling DAGs first (same hits either way)
+  // Test batching points' culling DAGs first (same hits either way). Off: in core (this API's tracing) the
+  // DAG test costs more than the BVH walks it saves (1.3-2.4x slower on the samples); it pays out of core.
+  bool cull = false;
   int threads = 0;       // 0: all cores (TBB); 1: the calling thread only
   // trace(): each run of `packet` consecutive rays (4, 8 or 16, from the first ray) goes through the
   // package as one packet (Wu 2016); 0 traces ray by ray. The hits are the same bit for bit; packets
