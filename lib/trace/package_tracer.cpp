@@ -4,6 +4,8 @@
 #include "core/math.h"
 #include "trace/package_tracer.h"
 
+#include <xmmintrin.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -361,7 +363,11 @@ class Tracer final : public PackageTracer {
       }
       fmt::Ray ray = rays[i];
       traverse(ray, [&](const Point<W, B>& pt, size_t p, double) {
-        fmt::Ray local = ray;
+        // Copied as two 16-byte rows, the halves the kernels' loads read (ray_is_valid): field by field,
+        // those loads waited for a failed store forward.
+        fmt::Ray local;
+        _mm_storeu_ps(local.org, _mm_loadu_ps(ray.org));  // org, tnear
+        _mm_storeu_ps(local.dir, _mm_loadu_ps(ray.dir));  // dir, tfar
         return enter(p, local, o, st) && visit(i, pt, local, ray);
       });
     }

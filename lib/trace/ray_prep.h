@@ -26,8 +26,10 @@ namespace rtp::RTP_ISA_NS {
 RTP_KERNEL_INLINE bool ray_is_valid(const fmt::Ray& ray) {
 #if defined(__AVX2__)
   // x − x is 0 exactly when x is finite (NaN for ±inf and NaN): the six components in one compare.
-  // Lanes 3 and 7 are tnear and tfar (fmt::Ray's layout), checked below.
-  const __m256 v = _mm256_loadu_ps(ray.org);
+  // Lanes 3 and 7 are tnear and tfar (fmt::Ray's layout), checked below. Two 16-byte loads: a ray written
+  // as two halves (the package tracer's per-point copies) forwards each from one store, which one 32-byte
+  // load cannot (issue 11: a failed forward cost more than the check).
+  const __m256 v = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(ray.org)), _mm_loadu_ps(ray.dir), 1);
   const int finite = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_sub_ps(v, v), _mm256_setzero_ps(), _CMP_EQ_OQ));
   if ((finite & 0x77) != 0x77) return false;
 #else
