@@ -176,7 +176,13 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
   }
   setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
   auto instance_leaf = [&](uint32_t ref) -> Walk { return instance_leaf_one<K, O>(s, ref, ray, world, sink); };
-  return walk<O, K, W, Sink::kFixedFar>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, [](uint32_t) {});
+  // A hit instance leaf's first record (its transform and mesh, the first loads of its visit), fetched
+  // while the walk goes on (issue 11: forest-2k's shadow rays stalled on that load).
+  auto prefetch_record = [&](uint32_t ref) __attribute__((always_inline)) {
+    const char* rec = reinterpret_cast<const char*>(s.instances + s.top_instances[fmt::ChildRef::first_block(ref)]);
+    __builtin_prefetch(rec), __builtin_prefetch(rec + 64);
+  };
+  return walk<O, K, W, Sink::kFixedFar>(s.top_nodes, s.top_root, world, sink.tfar(), instance_leaf, prefetch_record);
 }
 
 template <class K, TraversalOrder O, bool kAny, int W, int B>
