@@ -401,11 +401,10 @@ class Tracer final : public PackageTracer {
           uint32_t kid_ref[4];
           double kid_t[4];
           int nk = 0;
-          for (int l = 0; l < 4; ++l) {
-            if (node.child[l] == fmt::TopNode::kEmpty) continue;
-            const TopLane c = top_lane(node, l, ray, inv);
-            if (c.hit) kid_ref[nk] = node.child[l], kid_t[nk] = c.t0, ++nk;
-          }
+          const TopLanes lanes = top_lanes(node, ray, inv);
+          for (int l = 0; l < 4; ++l)
+            if (node.child[l] != fmt::TopNode::kEmpty && ((lanes.hit >> l) & 1u))
+              kid_ref[nk] = node.child[l], kid_t[nk] = lanes.t0[l], ++nk;
           for (int a = 1; a < nk; ++a)  // insertion sort, farthest first: the nearest ends on top
             for (int b = a; b > 0 && kid_t[b - 1] < kid_t[b]; --b)
               std::swap(kid_t[b - 1], kid_t[b]), std::swap(kid_ref[b - 1], kid_ref[b]);

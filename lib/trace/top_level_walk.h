@@ -3,6 +3,8 @@
 // box test, shared so that the in-core walk (a stack) and the out-of-core walk (parent pointers) visit
 // batching points in exactly the same order, whatever their scheduling: nearest entry distance first,
 // ties by the higher lane first (the order the in-core stack pops them).
+#include <emmintrin.h>
+
 #include <algorithm>
 #include <cstdint>
 
@@ -34,6 +36,45 @@ inline TopLane top_lane(const fmt::TopNode& node, int l, const fmt::Ray& ray, co
   return {t0, hit && t0 <= t1};
 }
 
+// The four lanes of `node` at once, two per SSE2 register: for every lane whose box the ray's line
+// meets on the axes where dir is 0, the same t0 as top_lane (the same operations: a compare picks the
+// near plane as top_lane's swap does, std::max and std::min are compares and selects), and `hit`
+// bit l equal to top_lane's hit. (top_lane stops at an axis where dir is 0 and the origin is outside the
+// slab; here the other axes still move that lane's t0, which no caller reads for a lane that misses.)
+struct TopLanes {
+  double t0[4];
+  uint32_t hit;  // bit l: lane l hit (empty lanes are not masked out here)
+};
+inline TopLanes top_lanes(const fmt::TopNode& node, const fmt::Ray& ray, const double inv[3]) {
+  __m128d t0[2] = {_mm_set1_pd(double(ray.tnear)), _mm_set1_pd(double(ray.tnear))};
+  __m128d t1[2] = {_mm_set1_pd(double(ray.tfar)), _mm_set1_pd(double(ray.tfar))};
+  __m128d in[2] = {_mm_castsi128_pd(_mm_set1_epi32(-1)), _mm_castsi128_pd(_mm_set1_epi32(-1))};
+  const __m128d widen = _mm_set1_pd(1 + 1e-12);
+  auto select = [](__m128d m, __m128d yes, __m128d no) { return _mm_or_pd(_mm_and_pd(m, yes), _mm_andnot_pd(m, no)); };
+  for (int k = 0; k < 3; ++k) {
+    const __m128d o = _mm_set1_pd(double(ray.org[k])), iv = _mm_set1_pd(inv[k]);
+    for (int h = 0; h < 2; ++h) {
+      const __m128d lo = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(&node.lo[k][2 * h]))));
+      const __m128d hi = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(&node.hi[k][2 * h]))));
+      if (ray.dir[k] == 0) {
+        in[h] = _mm_and_pd(in[h], _mm_and_pd(_mm_cmpge_pd(o, lo), _mm_cmple_pd(o, hi)));
+        continue;
+      }
+      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, o), iv), b = _mm_mul_pd(_mm_sub_pd(hi, o), iv);
+      const __m128d swap = _mm_cmpgt_pd(a, b);
+      const __m128d near = select(swap, b, a), far = _mm_mul_pd(select(swap, a, b), widen);
+      t0[h] = select(_mm_cmplt_pd(t0[h], near), near, t0[h]);  // std::max(t0, near)
+      t1[h] = select(_mm_cmplt_pd(far, t1[h]), far, t1[h]);    // std::min(t1, far)
+    }
+  }
+  TopLanes r;
+  _mm_storeu_pd(r.t0, t0[0]);
+  _mm_storeu_pd(r.t0 + 2, t0[1]);
+  r.hit = uint32_t(_mm_movemask_pd(_mm_and_pd(in[0], _mm_cmple_pd(t0[0], t1[0])))) |
+          uint32_t(_mm_movemask_pd(_mm_and_pd(in[1], _mm_cmple_pd(t0[1], t1[1])))) << 2;
+  return r;
+}
+
 inline void top_inverse(const fmt::Ray& ray, double inv[3]) {
   for (int k = 0; k < 3; ++k) inv[k] = 1.0 / double(ray.dir[k]);
 }
@@ -55,16 +96,15 @@ inline uint32_t top_next(const fmt::TopNode* top, const fmt::Ray& ray, const dou
   uint32_t node = pos.node, after = pos.lane;
   for (;;) {
     const fmt::TopNode& n = top[node];
-    double after_t = 0;
-    if (after != TopPosition::kNoLane) after_t = top_lane(n, int(after), ray, inv).t0;
+    const TopLanes lanes = top_lanes(n, ray, inv);  // the after lane's t0 too (its slab holds the origin)
+    const double after_t = after != TopPosition::kNoLane ? lanes.t0[after] : 0;
     int best = -1;
     double best_t = 0;
     for (int l = 3; l >= 0; --l) {  // descending lanes: on equal t the first found (higher lane) wins
-      if (n.child[l] == fmt::TopNode::kEmpty) continue;
-      const TopLane c = top_lane(n, l, ray, inv);
-      if (!c.hit) continue;
-      if (after != TopPosition::kNoLane && !(c.t0 > after_t || (c.t0 == after_t && uint32_t(l) < after))) continue;
-      if (best < 0 || c.t0 < best_t) best = l, best_t = c.t0;
+      if (n.child[l] == fmt::TopNode::kEmpty || !((lanes.hit >> l) & 1u)) continue;
+      const double t0 = lanes.t0[l];
+      if (after != TopPosition::kNoLane && !(t0 > after_t || (t0 == after_t && uint32_t(l) < after))) continue;
+      if (best < 0 || t0 < best_t) best = l, best_t = t0;
     }
     if (best >= 0) {
       const uint32_t child = n.child[best];
