@@ -122,13 +122,18 @@ inline constexpr PushOrder kPushOrder{};
 // positions in the node's octant order `order`; their (child, entry distance) pairs are written to
 // `dst` from the farthest to the nearest, exactly as the loop pushed them, plus garbage up to 8 pairs
 // (dst has room for 8). `dist` is the box test's per-lane entry distances.
-RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
-                                     uint32_t rest) {
+// The node lanes of the positions marked in `rest` (of the octant order `order`), far to near.
+RTP_KERNEL_INLINE __m256i pushed_lanes8(const uint8_t* order, uint32_t rest) {
   const __m256i ord = _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))),
                                        _mm256_set1_epi32(15));
   const __m256i pick =
       _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
-  const __m256i lanes = _mm256_permutevar8x32_epi32(ord, pick);
+  return _mm256_permutevar8x32_epi32(ord, pick);
+}
+
+RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
+                                     uint32_t rest) {
+  const __m256i lanes = pushed_lanes8(order, rest);
   const __m256i refs =
       _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes);
   const __m256i ds = _mm256_permutevar8x32_epi32(_mm256_castps_si256(_mm256_loadu_ps(dist)), lanes);
@@ -140,11 +145,7 @@ RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const flo
 // The same push for a walk whose stack keeps references only (walk_octant_stack's kFixedFar): the
 // children far to near, plus garbage up to 8 references (dst has room for 8).
 RTP_KERNEL_INLINE void push_ordered8_refs(uint32_t* dst, const uint32_t* child, const uint8_t* order, uint32_t rest) {
-  const __m256i ord = _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))),
-                                       _mm256_set1_epi32(15));
-  const __m256i pick =
-      _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
-  const __m256i lanes = _mm256_permutevar8x32_epi32(ord, pick);
+  const __m256i lanes = pushed_lanes8(order, rest);
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst),
                       _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes));
 }

@@ -18,7 +18,8 @@ struct TopLane {
   bool hit;   // the box meets [tnear, tfar]
 };
 
-// Lane l of `node` against the ray (double precision, the box's far side widened by 1e-12 relative).
+// Lane l of `node` against the ray (double precision, the box's far side widened by 1e-12 relative): the
+// one-lane reference that top_lanes, which both walks use, is tested against (tests/test_top_level_walk.cpp).
 inline TopLane top_lane(const fmt::TopNode& node, int l, const fmt::Ray& ray, const double inv[3]) {
   double t0 = ray.tnear, t1 = ray.tfar;
   bool hit = true;
