@@ -94,4 +94,26 @@ static_assert(sizeof(InstanceRecord) == 112 && alignof(InstanceRecord) == 8);
 static_assert(offsetof(InstanceRecord, linear) == 24 && offsetof(InstanceRecord, inverse_linear) == 60 &&
               offsetof(InstanceRecord, mesh) == 96);
 
+// One scene instance in the instance table (SPEC §2.5, version 5.0), 20 bytes: where its record is, not
+// the record (each record is stored once, in the batching point that traces it: a 10^6-instance
+// forest's table was 112 MB raw, a third of its package, repeating the points' records).
+//   offset 0  uint32 mesh                 scene mesh index
+//   offset 4  uint32 point                batching point whose section 5 holds the instance's record (for a
+//                                         unique mesh: its first piece's, by point then local index), or
+//                                         kNoPoint: no point holds it (a mesh without triangles)
+//   offset 8  uint32 local                that record's index in the point's section 5 (0 with kNoPoint)
+//   offset 12 uint32 source_node          glTF node (as the record's)
+//   offset 16 uint32 source_gpu_instance  EXT_mesh_gpu_instancing index or 0xFFFFFFFF (as the record's)
+struct InstanceRef {
+  static constexpr uint32_t kNoPoint = 0xFFFFFFFFu;
+  uint32_t mesh;
+  uint32_t point;
+  uint32_t local;
+  uint32_t source_node;
+  uint32_t source_gpu_instance;
+};
+static_assert(sizeof(InstanceRef) == 20 && alignof(InstanceRef) == 4);
+static_assert(offsetof(InstanceRef, point) == 4 && offsetof(InstanceRef, local) == 8 &&
+              offsetof(InstanceRef, source_gpu_instance) == 16);
+
 }  // namespace rtp::fmt

@@ -61,6 +61,8 @@ enum class SectionType : uint32_t {
   kPointGrids = 22,     // DagGrid[]        per batching point (descriptors chunk): grid and DAG root
   kDagNodes = 23,       // uint32[]         DAG pool node words (kind 7)
   kDagLeaves = 24,      // uint64[]         DAG pool leaf masks (kind 7)
+  // 5.0: the instance table holds where each record is, not a copy of it, SPEC §2.5:
+  kInstanceRefs = 25,   // InstanceRef[]    per scene instance (instance table, kind 4)
 };
 
 inline constexpr uint32_t kMeshInstanced = 1, kMeshNormals = 2, kMeshUvs = 4;  // MeshInfo::flags

@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - depends on the machine
 
 # ---- constants (formats/package.h, chunk.h, dag.h) -------------------------------------------------
 MAGIC = b"RTPACK\r\n"
-VERSION_MAJOR, VERSION_MINOR = 4, 0
+VERSION_MAJOR, VERSION_MINOR = 5, 0
 ALIGNMENT = 4096
 CHUNK_MAGIC = 0x48435452  # "RTCH"
 MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
@@ -91,7 +91,8 @@ RESIDENT_KINDS = range(1, 8)
 (SEC_NODES, SEC_BLOCKS, SEC_MESH_ENTRIES, SEC_INSTANCE_IDS, SEC_INSTANCES, SEC_GLOBAL_IDS, SEC_MESH_SLOTS,
  SEC_TOP_NODES, SEC_POINT_DESCS, SEC_SEGMENT_REFS, SEC_MESH_TABLE, SEC_SOURCE_PRIMS, SEC_SOURCE_TRIS, SEC_JSON,
  SEC_INSTANCE_NODES, SEC_INSTANCE_BVH, SEC_ATTR_ENTRIES, SEC_ATTR_TRIANGLES, SEC_ATTR_NORMALS, SEC_ATTR_UVS,
- SEC_ATTR_TRI_IDS, SEC_POINT_GRIDS, SEC_DAG_NODES, SEC_DAG_LEAVES) = range(1, 25)
+ SEC_ATTR_TRI_IDS, SEC_POINT_GRIDS, SEC_DAG_NODES, SEC_DAG_LEAVES, SEC_INSTANCE_REFS) = range(1, 26)
+NO_POINT = 0xFFFFFFFF  # InstanceRef.point of an instance no batching point holds
 
 
 def kind_name(kind):
@@ -119,6 +120,9 @@ SECTION_ENTRY = _dt([("type", "<u4"), ("elem_size", "<u4"), ("offset", "<u8"), (
 # SPEC §2.4 InstanceRecord (112 B): world = linear @ local + translation (double), local = inverse_linear @ (world - translation)
 INSTANCE_RECORD = _dt([("translation", "<f8", (3,)), ("linear", "<f4", (3, 3)), ("inverse_linear", "<f4", (3, 3)),
                        ("mesh", "<u4"), ("flags", "<u4"), ("source_node", "<u4"), ("source_gpu_instance", "<u4")])
+# SPEC §2.5 InstanceRef (20 B): where the record of a scene instance is (batching point, index in its section 5)
+INSTANCE_REF = _dt([("mesh", "<u4"), ("point", "<u4"), ("local", "<u4"), ("source_node", "<u4"),
+                    ("source_gpu_instance", "<u4")])
 # SPEC §4.2 MeshEntry (32 B)
 MESH_ENTRY = _dt([("id", "<u4"), ("root", "<u4"), ("node_first", "<u4"), ("node_count", "<u4"),
                   ("block_first", "<u4"), ("block_count", "<u4"), ("triangles", "<u8")])
@@ -162,6 +166,7 @@ def _check_layouts():
     assert CHUNK_HEADER.itemsize == 16 and SECTION_ENTRY.itemsize == 24 and off(SECTION_ENTRY, "offset") == 8
     assert INSTANCE_RECORD.itemsize == 112 and off(INSTANCE_RECORD, "linear") == 24
     assert off(INSTANCE_RECORD, "inverse_linear") == 60 and off(INSTANCE_RECORD, "mesh") == 96
+    assert INSTANCE_REF.itemsize == 20 and off(INSTANCE_REF, "local") == 8 and off(INSTANCE_REF, "source_gpu_instance") == 16
     assert MESH_ENTRY.itemsize == 32 and off(MESH_ENTRY, "triangles") == 24
     assert MESH_INFO.itemsize == 32 and off(MESH_INFO, "source_tri_first") == 24
     assert BATCHING_POINT_DESC.itemsize == 64 and off(BATCHING_POINT_DESC, "chunk_id") == 56
@@ -190,7 +195,8 @@ def section_dtype(sec_type, w, b):
             SEC_JSON: np.dtype("u1"), SEC_INSTANCE_NODES: wide_node(w), SEC_INSTANCE_BVH: MESH_ENTRY,
             SEC_ATTR_ENTRIES: ATTRIBUTE_ENTRY, SEC_ATTR_TRIANGLES: np.dtype(("<u4", (3,))),
             SEC_ATTR_NORMALS: np.dtype(("<f4", (3,))), SEC_ATTR_UVS: np.dtype(("<f4", (2,))), SEC_ATTR_TRI_IDS: u4,
-            SEC_POINT_GRIDS: DAG_GRID, SEC_DAG_NODES: u4, SEC_DAG_LEAVES: np.dtype("<u8")}.get(int(sec_type))
+            SEC_POINT_GRIDS: DAG_GRID, SEC_DAG_NODES: u4, SEC_DAG_LEAVES: np.dtype("<u8"),
+            SEC_INSTANCE_REFS: INSTANCE_REF}.get(int(sec_type))
 
 
 # SPEC §4.5 pool: an inner node at word offset `off` of section 23 (words) -- word 0 = child mask
@@ -550,7 +556,7 @@ class Package:
             "point_instances": int(d["instance_count"].sum()),
             "mesh_segments": int((self.toc["kind"] == KIND_MESH_SEGMENT).sum()),
             "meshes": len(meshes), "segment_meshes": int((meshes["segment"] != NO_SEGMENT).sum()),
-            "instances": len(self.resident(KIND_INSTANCES).get(SEC_INSTANCES)),
+            "instances": len(self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)),
             "top_level": {"nodes": len(top), "max_depth": int(top["depth"].max()) + 1 if len(top) else 0},
             "dag": {"present": pool is not None, "grids": 0 if grids is None else len(grids),
                     "pool_bytes": 0 if pool is None else pool.get(SEC_DAG_NODES).nbytes + pool.get(SEC_DAG_LEAVES).nbytes},

@@ -359,11 +359,11 @@ TEST(OutOfCore, SectionCountStreamsTheChunk) {
     const AlignedBytes b = reader.read(size_t(i));
     const ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), "instance table");
     uint64_t n = 0;
-    v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n);
+    v.get<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs, n);
     EXPECT_GT(n, 1000u);
-    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstances), sizeof(fmt::InstanceRecord)), n);
+    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstanceRefs), sizeof(fmt::InstanceRef)), n);
     EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kGlobalIds), 4), 0u);  // absent: 0
-    EXPECT_THROW(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstances), 100), Error);  // wrong size
+    EXPECT_THROW(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstanceRefs), 16), Error);  // wrong size
   }
   {  // the last stored byte flipped (CRC re-sealed nowhere): refused as corrupt
     const std::string pkg = (dir / "forest-0.rtp").string();

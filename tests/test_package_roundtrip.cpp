@@ -7,6 +7,7 @@
 #include <fstream>
 #include <set>
 
+#include "bvh/bvh.h"
 #include "cluster/cluster.h"
 #include "formats/chunk.h"
 #include "gltf_builder.h"
@@ -138,11 +139,60 @@ class Package : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir); }
 };
 
+// SPEC §2.5: the instance table names, for every scene instance, the one record the points store for it
+// (a unique mesh's: its first piece's, by point then local index), with the record's source fields; and
+// the record there is the scene instance's own (transform bits included).
+void check_instance_table(const Scene& s, const std::string& path) {
+  PackageReader r(path);
+  const AlignedBytes tb = r.read(size_t(r.find(fmt::ChunkKind::kInstances, 0)));
+  const auto refs = ChunkView(tb.data(), tb.size(), uint32_t(fmt::ChunkKind::kInstances), "table")
+                        .copy<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs);
+  ASSERT_EQ(refs.size(), s.instances.size());
+  std::map<uint32_t, std::pair<uint32_t, uint32_t>> first;  // instance -> smallest (point, local) holding it
+  std::map<std::pair<uint32_t, uint32_t>, std::pair<uint32_t, fmt::InstanceRecord>> held;  // (point, local) -> (instance, record)
+  for (size_t i = 0; i < r.toc().size(); ++i) {
+    if (r.toc()[i].kind != uint32_t(fmt::ChunkKind::kBatchingPoint)) continue;
+    const uint32_t p = uint32_t(r.toc()[i].id);
+    const AlignedBytes b = r.read(i);
+    ChunkView v(b.data(), b.size(), r.toc()[i].kind, "point");
+    const auto rec = v.copy<fmt::InstanceRecord>(fmt::SectionType::kInstances);
+    const auto gid = v.copy<uint32_t>(fmt::SectionType::kGlobalIds);
+    for (uint32_t k = 0; k < rec.size(); ++k) {
+      held[{p, k}] = {gid[k], rec[k]};
+      auto [it, fresh] = first.emplace(gid[k], std::pair(p, k));
+      if (!fresh) it->second = std::min(it->second, std::pair(p, k));
+    }
+  }
+  size_t placed = 0;
+  for (uint32_t g = 0; g < refs.size(); ++g) {
+    const fmt::InstanceRef& ref = refs[g];
+    EXPECT_EQ(ref.mesh, s.instances[g].mesh) << g;
+    EXPECT_EQ(ref.source_node, s.instances[g].node) << g;
+    EXPECT_EQ(ref.source_gpu_instance, s.instances[g].gpu_instance) << g;
+    const auto f = first.find(g);
+    if (f == first.end()) {
+      EXPECT_EQ(ref.point, fmt::InstanceRef::kNoPoint) << g;
+      continue;
+    }
+    ASSERT_EQ(std::pair(ref.point, ref.local), f->second) << "instance " << g;
+    const auto& [id, rec] = held.at(f->second);
+    ASSERT_EQ(id, g);
+    const fmt::InstanceRecord want = make_instance_record(s.instances[g]);
+    EXPECT_EQ(std::memcmp(&rec, &want, offsetof(fmt::InstanceRecord, mesh)), 0) << "instance " << g << ": transform";
+    EXPECT_EQ(rec.flags, want.flags);
+    EXPECT_EQ(rec.source_node, want.source_node);
+    ++placed;
+  }
+  EXPECT_GT(placed, 0u);
+}
+
 TEST_F(Package, EveryTriangleOfEveryInstanceExactlyOnce) {
   for (const char* rel : kSamples) {
     SCOPED_TRACE(rel);
     const Scene s = import_gltf((source_dir() / rel).string());
-    check_every_triangle_once<8, 8>(s, write(s, dir / "p8.rtp", 8, 3000));
+    const std::string path = write(s, dir / "p8.rtp", 8, 3000);
+    check_every_triangle_once<8, 8>(s, path);
+    check_instance_table(s, path);
   }
   const Scene g = import_gltf((source_dir() / "samples/generated/gallery.glb").string());
   check_every_triangle_once<4, 4>(g, write(g, dir / "p4.rtp", 4, 2000));
@@ -307,13 +357,14 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
   }
   EXPECT_EQ(caught, 1000);
   // Packages of earlier major versions (1.x: no culling DAGs; 2.x: no inline DAG leaves; 3.x: float 3x4
-  // instance transforms) are refused with a version message.
-  for (const char major : {char(1), char(2), char(3)}) {
+  // instance transforms; 4.x: an instance table of whole records) are refused with a version message.
+  for (const char major : {char(1), char(2), char(3), char(4)}) {
     std::string v = bytes;
     v[8] = major;
     std::string expected = "package version ";
     expected += std::to_string(int(major)) + "." + std::to_string(rtp::fmt::kVersionMinor);
-    expected += " is not supported by this reader (version 4.x): it was written by an older rtpack-convert; "
+    expected += " is not supported by this reader (version " + std::to_string(fmt::kVersionMajor) +
+                ".x): it was written by an older rtpack-convert; "
                 "convert the source again";
     EXPECT_EQ(outcome(v), expected);
   }

@@ -127,8 +127,8 @@ bool invert_affine(const Affine3x4& m, double inverse[12]);
 // SPEC §2.4 record: the translation in double, the 3x3 part rounded to float, its inverse taken in
 // double then rounded (all zeros if singular), flags bit 0 = det < 0.
 fmt::InstanceRecord make_instance_record(const Instance& instance);
-// make_instance_record of every instance into out[0 .. instances.size()), in parallel (the package's
-// instance table; batching points and culling proxies copy from it instead of recomputing).
+// make_instance_record of every instance into out[0 .. instances.size()), in parallel (the writer's
+// records, computed once: batching points and culling proxies copy from them instead of recomputing).
 void make_instance_records(const std::vector<Instance>& instances, fmt::InstanceRecord* out);
 std::vector<fmt::InstanceRecord> make_instance_records(const std::vector<Instance>& instances);
 

@@ -83,7 +83,7 @@ void check_resident(Ctx& c) {
   if (res.instances_ok)
     guarded(c, [&] {
       check_instance_table(res.instances.data(), res.instances.size(), res.meshes_ok ? res.meshes.size() : kUnknownCount,
-                           res.instances_label);
+                           res.descs_ok ? res.descs.size() : kUnknownCount, res.instances_label);
     });
   if (res.descs_ok)
     guarded(c, [&] { check_point_descs(res.descs.data(), res.descs.size(), res.segment_refs.size(), res.descs_label); });
@@ -145,7 +145,7 @@ void read_resident(Ctx& c) {
           res.dag_ok = true;
           break;
         case ChunkKind::kInstances:
-          res.instances = v.copy<fmt::InstanceRecord>(SectionType::kInstances);
+          res.instances = v.copy<fmt::InstanceRef>(SectionType::kInstanceRefs);
           res.instances_ok = true;
           res.instances_label = label;
           break;

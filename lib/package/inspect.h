@@ -143,7 +143,7 @@ struct Resident {
   std::vector<fmt::TopNode> top;
   std::vector<fmt::BatchingPointDesc> descs;
   std::vector<uint32_t> segment_refs;
-  std::vector<fmt::InstanceRecord> instances;
+  std::vector<fmt::InstanceRef> instances;  // the instance table (SPEC §2.5)
   std::vector<fmt::MeshInfo> meshes;
   std::vector<Pair> source_prims, source_tris;
   std::string top_label, descs_label, instances_label, meshes_label, source_label, meta_label;
@@ -205,6 +205,11 @@ class Verifier {
   Problems& out_;
   std::vector<uint32_t> instance_seen_;              // per scene instance: as a non-piece instance
   std::vector<std::vector<uint8_t>> unique_cover_;   // per scene instance of a unique mesh: per triangle
+  struct PieceHome {  // a unique mesh's instance: its first piece (by point, local index) and that record
+    uint32_t point = ~0u, local = 0;
+    fmt::InstanceRecord rec{};
+  };
+  std::map<uint32_t, PieceHome> piece_home_;
   std::vector<uint8_t> mesh_in_segment_;             // per mesh: entries in segments
   std::map<uint32_t, uint32_t> piece_seen_;         // piece id -> times stored
   AttributeChecker attrs_;

@@ -61,6 +61,12 @@ std::string coverage(const std::vector<uint32_t>& prims, uint64_t total, std::ve
   return s;
 }
 
+// Where the instance table says a record is (SPEC §2.5).
+std::string place(const fmt::InstanceRef& r) {
+  if (r.point == fmt::InstanceRef::kNoPoint) return "no batching point";
+  return "batching point " + str(r.point) + " (local " + str(r.local) + ")";
+}
+
 // "N triangles missing (first: t)" or "" when every triangle was counted.
 std::string missing(const std::vector<uint8_t>& count) {
   uint64_t n = 0, first = 0;
@@ -150,7 +156,7 @@ void Verifier::check_tables() {
   uint64_t instanced = 0, unique = 0;
   if (res_.instances_ok && res_.meshes_ok) {
     for (size_t i = 0; i < res_.instances.size(); ++i) {
-      const fmt::InstanceRecord& rec = res_.instances[i];
+      const fmt::InstanceRef& rec = res_.instances[i];
       const std::string what = res_.instances_label + ": instance " + str(i);
       if (rec.mesh >= n_meshes) {
         out_.add(what + ": mesh " + str(rec.mesh) + " out of range (" + str(n_meshes) + " meshes)");
@@ -158,7 +164,6 @@ void Verifier::check_tables() {
       }
       ++uses[rec.mesh];
       instanced += res_.meshes[rec.mesh].triangles;
-      if (((rec.flags & 1u) != 0) != (det3(rec.linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
     }
     if (instanced != h.instanced_triangles)
       out_.add("header: instanced_triangles " + str(h.instanced_triangles) + ", the instance table gives " + str(instanced));
@@ -363,16 +368,22 @@ void Verifier::point(const PointData& p) {
       out_.add(what + ": global instance " + str(g) + " out of range");
       continue;
     }
-    const fmt::InstanceRecord& grec = res_.instances[g];
-    const fmt::MeshInfo& mi = res_.meshes[grec.mesh];
-    if (std::memcmp(rec.translation, grec.translation, sizeof rec.translation) ||
-        std::memcmp(rec.linear, grec.linear, sizeof rec.linear) ||
-        std::memcmp(rec.inverse_linear, grec.inverse_linear, sizeof rec.inverse_linear) || rec.flags != grec.flags ||
-        rec.source_node != grec.source_node || rec.source_gpu_instance != grec.source_gpu_instance)
-      out_.add(what + ": transform, flags or source differ from instance " + str(g) + " of the instance table");
+    const fmt::InstanceRef& gref = res_.instances[g];
+    const fmt::MeshInfo& mi = res_.meshes[gref.mesh];
+    if (((rec.flags & 1u) != 0) != (det3(rec.linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
+    if (rec.source_node != gref.source_node || rec.source_gpu_instance != gref.source_gpu_instance)
+      out_.add(what + ": source node or GPU instance differ from instance " + str(g) + " of the instance table");
     if (piece) {
       const uint32_t entry = p.slots[rec.mesh] & ~fmt::kPieceBit;
-      if (mi.flags & 1u) out_.add(what + ": a piece of instance " + str(g) + ", whose mesh " + str(grec.mesh) + " is instanced");
+      if (mi.flags & 1u) out_.add(what + ": a piece of instance " + str(g) + ", whose mesh " + str(gref.mesh) + " is instanced");
+      // Every piece of one instance carries its record; the table points at the first (SPEC §2.5).
+      PieceHome& home = piece_home_[g];
+      const bool seen = home.point != kNone;
+      if (seen && std::memcmp(&rec.translation, &home.rec.translation, offsetof(fmt::InstanceRecord, mesh)))
+        out_.add(what + ": a piece of instance " + str(g) + " whose transform differs from its piece in batching point " +
+                 str(home.point) + " (local " + str(home.local) + ")");
+      if (!seen || std::pair(uint32_t(p.id), uint32_t(k)) < std::pair(home.point, home.local))
+        home = {uint32_t(p.id), uint32_t(k), rec};
       if (entry >= p.entries.size() || (mi.flags & 1u)) continue;
       std::vector<uint8_t>& cover = unique_cover_[g];
       cover.resize(mi.triangles, 0);
@@ -382,8 +393,10 @@ void Verifier::point(const PointData& p) {
       ++instances;
       instanced_tris += mi.triangles;
       ++instance_seen_[g];
-      if (p.slots[rec.mesh] != grec.mesh)
-        out_.add(what + ": mesh " + str(p.slots[rec.mesh]) + ", the instance table says " + str(grec.mesh) + " for instance " + str(g));
+      if (p.slots[rec.mesh] != gref.mesh)
+        out_.add(what + ": mesh " + str(p.slots[rec.mesh]) + ", the instance table says " + str(gref.mesh) + " for instance " + str(g));
+      if (gref.point != p.id || gref.local != k)
+        out_.add(what + ": instance " + str(g) + ", which " + res_.instances_label + " places in " + place(gref));
     }
   }
   std::vector<GeometryEntry> geo;
@@ -433,6 +446,13 @@ void Verifier::finish() {
       continue;
     }
     if (instance_seen_[g]) out_.add(what + ": a unique mesh's instance referenced as an instance, not as pieces");
+    const auto home = piece_home_.find(uint32_t(g));
+    const fmt::InstanceRef& ref = res_.instances[g];
+    if (home == piece_home_.end() ? ref.point != fmt::InstanceRef::kNoPoint
+                                  : ref.point != home->second.point || ref.local != home->second.local)
+      out_.add(what + ": the instance table places it in " + place(ref) + ", its first piece is in " +
+               (home == piece_home_.end() ? std::string("no batching point")
+                                          : "batching point " + str(home->second.point) + " (local " + str(home->second.local) + ")"));
     if (res_.meshes[m].triangles == 0) continue;
     if (unique_cover_[g].empty()) {
       out_.add(what + ": none of its triangles is in a piece");

@@ -70,7 +70,6 @@ struct Job {
   ChunkKind kind;
   uint64_t id;
   AlignedBytes raw;  // resident chunks; a geometry chunk is sealed (compressed) at once, see seal()
-  const AlignedBytes* source = nullptr;  // else a resident chunk's raw bytes owned by write_t (the instance table)
   uint64_t raw_size = 0;
   AlignedBytes stored{};
   fmt::Compression comp{};
@@ -203,18 +202,34 @@ constexpr size_t kResidentBeforePoints = 2;
 
 Job resident_job(ChunkKind kind, ChunkBuilder& cb) { return Job{kind, 0, cb.finish()}; }
 
-// The instance table chunk (SPEC §4.1 kind 4) with every record computed in place: batching points and
-// culling proxies copy their records from it (no 10^6-record copy, each record computed once).
-AlignedBytes instance_table_chunk(const Scene& scene) {
+// The instance table chunk (SPEC §4.1 kind 4, §2.5): per scene instance its mesh, source and where its
+// record is: the batching point and local index build_point gives it (pieces first, in bp.pieces order,
+// then bp.instances), a unique mesh's instance at its first piece.
+AlignedBytes instance_table_chunk(const Scene& scene, const Plan& plan) {
   ChunkBuilder ic{uint32_t(ChunkKind::kInstances)};
-  ic.add_reserved(SectionType::kInstances, scene.instances.size(), sizeof(fmt::InstanceRecord));
+  ic.add_reserved(SectionType::kInstanceRefs, scene.instances.size(), sizeof(fmt::InstanceRef));
   AlignedBytes raw = ic.finish();
-  make_instance_records(scene.instances, reinterpret_cast<fmt::InstanceRecord*>(ChunkBuilder::section_data(raw, 0)));
+  auto* refs = reinterpret_cast<fmt::InstanceRef*>(ChunkBuilder::section_data(raw, 0));
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, scene.instances.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const Instance& in = scene.instances[i];
+      refs[i] = {in.mesh, fmt::InstanceRef::kNoPoint, 0, in.node, in.gpu_instance};
+    }
+  });
+  for (size_t p = 0; p < plan.points.size(); ++p) {
+    const BatchingPoint& bp = plan.points[p];
+    uint32_t local = 0;
+    for (uint32_t k : bp.pieces) {
+      fmt::InstanceRef& ref = refs[plan.pieces[k].instance];
+      if (ref.point == fmt::InstanceRef::kNoPoint) ref.point = uint32_t(p), ref.local = local;
+      ++local;
+    }
+    for (uint32_t i : bp.instances) refs[i].point = uint32_t(p), refs[i].local = local++;
+  }
   return raw;
 }
 
-std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o,
-                                     const AlignedBytes& instance_table) {
+std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const ConvertOptions& o) {
   std::vector<Job> jobs;
   auto add = [&](ChunkKind kind, ChunkBuilder& cb) { jobs.push_back(resident_job(kind, cb)); };
   nlohmann::json meta = o.metadata;
@@ -246,8 +261,7 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
   tc.add(SectionType::kTopNodes, plan.top);
   add(ChunkKind::kTopLevelBvh, tc);
 
-  jobs.push_back(Job{ChunkKind::kInstances, 0, {}});
-  jobs.back().source = &instance_table;
+  jobs.push_back(Job{ChunkKind::kInstances, 0, instance_table_chunk(scene, plan)});
 
   std::vector<fmt::MeshInfo> infos;
   std::vector<SourcePrimitive> prims;
@@ -321,7 +335,7 @@ std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const
 std::vector<Job> compress_all(std::vector<Job> jobs, int level) {
   tbb::parallel_for(size_t(0), jobs.size(), [&](size_t i) {
     Job& j = jobs[i];
-    const AlignedBytes& raw = j.source ? *j.source : j.raw;
+    const AlignedBytes& raw = j.raw;
     j.raw_size = raw.size();
     j.stored = PackageWriter::compress(raw.data(), raw.size(), level, j.comp);
     j.raw = AlignedBytes();
@@ -353,13 +367,15 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   if (o.dag) mesh_proxies = std::make_unique<voxel::MeshProxies>(scene, plan);
   std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
   voxel::DagPool pool;
+  // Every instance's record, computed once (in parallel: 10^6 records one by one were 5 % of a forest-1m
+  // convert's samples), copied by the batching points and the culling proxies; not stored as such.
+  std::unique_ptr<fmt::InstanceRecord[]> record_buf(new fmt::InstanceRecord[scene.instances.size()]);
+  make_instance_records(scene.instances, record_buf.get());
+  const fmt::InstanceRecord* records = record_buf.get();
   // The resident chunks that need no batching point are built and compressed beside the pipeline.
-  // In parallel: 10^6 records one by one were 5 % of a forest-1m convert's samples, on one thread.
-  AlignedBytes instance_table = instance_table_chunk(scene);
-  const auto* records = reinterpret_cast<const fmt::InstanceRecord*>(ChunkBuilder::section_data(instance_table, 0));
   std::vector<Job> early;
   tbb::task_group beside;
-  beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o, instance_table), o.zstd_level); });
+  beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
   struct Packed { Job job; AlignedBytes attr_stored; fmt::Compression attr_comp; voxel::PointProxy proxy; };
   const SealOptions seal_opt{o.zstd_level, o.zstd_raw_literals, o.zstd_leaf_min_match};
@@ -443,9 +459,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
   if (o.dag && n_pts > 0) header_flags |= fmt::kFlagDag;  // no point, no grid and no pool (metadata "dag" alike)
   beside.wait();
-  // Compressed, and no batching point reads its records any more: 112 MB back before the late stage.
-  for (Job& j : early) j.source = nullptr;
-  instance_table = AlignedBytes();
+  record_buf.reset();  // no batching point reads the records any more: 112 MB back before the late stage
   std::vector<Job> late = compress_all(point_resident_jobs(scene, plan, grids, pool), o.zstd_level);
   std::vector<Job*> order;  // file order (SPEC §4.1): metadata, top level, descriptors, DAG pool, the rest
   for (size_t i = 0; i < kResidentBeforePoints; ++i) order.push_back(&early[i]);

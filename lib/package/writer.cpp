@@ -52,7 +52,7 @@ AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, f
       used = fmt::Compression::kZstd;
       if (n >= kHugeThreshold) {
         // A large frame leaves in the scratch itself (its untouched tail is address space only), not
-        // copied into a fresh buffer: the 10^6-record instance table's 69 MB frame was both.
+        // copied into a fresh buffer (a 4.x 10^6-record instance table's 69 MB frame was both).
         AlignedBytes out = std::move(scratch);
         scratch = AlignedBytes();
         out.resize(n);

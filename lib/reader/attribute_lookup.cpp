@@ -1,10 +1,12 @@
 // Hit -> shading attributes: (instance -> mesh) from the instance table, (mesh, prim) -> attribute
-// entry and its triangle, barycentric interpolation, inverse-transpose to world space.
+// entry and its triangle, barycentric interpolation, inverse-transpose to world space (L^-1 from the
+// instance's record in the batching point the table names, SPEC §2.5).
 #include "reader/attribute_lookup.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <string>
 
 #include "core/error.h"
@@ -41,7 +43,8 @@ struct Chunk {
 // declared mesh id or prim (a hostile id costs one element, not a table up to it).
 struct AttributeLookup::Impl {
   using Key = std::pair<uint32_t, uint32_t>;  // (mesh, prim); whole meshes use prim 0
-  std::vector<fmt::InstanceRecord> instances;
+  std::vector<fmt::InstanceRef> instances;
+  std::vector<std::array<float, 9>> inverse_linear;  // per instance, read from the points only for normals
   std::vector<Chunk> chunks;
   std::vector<std::pair<Key, Loc>> whole;    // scene meshes stored whole (segment meshes)
   std::vector<std::pair<Key, Loc>> per_tri;  // scene meshes stored as pieces: per triangle
@@ -62,6 +65,38 @@ struct AttributeLookup::Impl {
   }
 };
 
+namespace {
+
+// Normals go to world space by their instance's L^-1, which only the batching points store: each point
+// the table names is read once, its records' L^-1 copied to the instances placed there.
+void load_inverse_linear(const PackageReader& r, const std::vector<fmt::InstanceRef>& instances,
+                         std::vector<std::array<float, 9>>& inverse_linear) {
+  inverse_linear.assign(instances.size(), {});
+  std::map<uint32_t, std::vector<uint32_t>> by_point;  // keyed: a hostile point id costs one entry
+  for (uint32_t g = 0; g < instances.size(); ++g)
+    if (instances[g].point != fmt::InstanceRef::kNoPoint) by_point[instances[g].point].push_back(g);
+  for (const auto& [p, ids] : by_point) {
+    const int64_t i = r.find(fmt::ChunkKind::kBatchingPoint, p);
+    if (i < 0) fail_invalid("instance table: batching point " + std::to_string(p) + " has no chunk");
+    const AlignedBytes b = r.read(size_t(i));
+    const std::string label = chunk_label(r.toc()[size_t(i)], size_t(i));
+    ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
+    uint64_t n = 0, n_ids = 0;
+    const fmt::InstanceRecord* rec = v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n);
+    const uint32_t* global = v.get<uint32_t>(fmt::SectionType::kGlobalIds, n_ids);
+    for (uint32_t g : ids) {
+      const uint32_t k = instances[g].local;
+      if (k >= n || k >= n_ids || global[k] != g)
+        fail_invalid("instance table: instance " + std::to_string(g) + ": local " + std::to_string(k) + " of " + label +
+                     (k >= n || k >= n_ids ? " is outside its " + std::to_string(n) + " records"
+                                           : " is instance " + std::to_string(global[k])));
+      std::copy(std::begin(rec[k].inverse_linear), std::end(rec[k].inverse_linear), inverse_linear[g].begin());
+    }
+  }
+}
+
+}  // namespace
+
 AttributeLookup::~AttributeLookup() = default;
 bool AttributeLookup::has_normals() const { return impl_->normals; }
 bool AttributeLookup::has_uvs() const { return impl_->uvs; }
@@ -74,7 +109,7 @@ AttributeLookup::AttributeLookup(const PackageReader& r) : impl_(std::make_uniqu
   {
     const AlignedBytes b = r.read(size_t(ii));
     ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), chunk_label(toc[size_t(ii)], size_t(ii)));
-    m.instances = v.copy<fmt::InstanceRecord>(fmt::SectionType::kInstances);
+    m.instances = v.copy<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs);
   }
   for (size_t i = 0; i < toc.size(); ++i) {
     const uint32_t kind = toc[i].kind;
@@ -110,6 +145,7 @@ AttributeLookup::AttributeLookup(const PackageReader& r) : impl_(std::make_uniqu
     }
     m.chunks.push_back(std::move(c));
   }
+  if (m.normals) load_inverse_linear(r, m.instances, m.inverse_linear);
   // Sorted by key; for a key stored twice the last one stored wins (as the direct tables did).
   for (auto* v : {&m.whole, &m.per_tri}) {
     std::stable_sort(v->begin(), v->end(), [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -122,7 +158,7 @@ fmt::Shading AttributeLookup::shade(const fmt::Hit& hit) const {
   const Impl& m = *impl_;
   fmt::Shading s{};
   if (hit.instance >= m.instances.size()) return s;
-  const fmt::InstanceRecord& rec = m.instances[hit.instance];
+  const fmt::InstanceRef& rec = m.instances[hit.instance];
   const Loc loc = m.find(rec.mesh, hit.prim);
   if (loc.chunk == fmt::kNoAttribute) return s;
   const Chunk& c = m.chunks[loc.chunk];
@@ -135,7 +171,7 @@ fmt::Shading AttributeLookup::shade(const fmt::Hit& hit) const {
     for (int k = 0; k < 3; ++k)
       for (int a = 0; a < 3; ++a) n[a] += w[k] * c.normals[e.normal_first + tri[size_t(k)]][size_t(a)];
     // Normals transform by the inverse transpose of local->world: the transpose of world->local.
-    const float* wl = rec.inverse_linear;
+    const float* wl = m.inverse_linear[hit.instance].data();
     double out[3], len2 = 0;
     for (int a = 0; a < 3; ++a) {
       out[a] = wl[a] * n[0] + wl[3 + a] * n[1] + wl[6 + a] * n[2];

@@ -148,10 +148,19 @@ void check_point_descs(const fmt::BatchingPointDesc* descs, uint64_t count, uint
   }
 }
 
-void check_instance_table(const fmt::InstanceRecord* records, uint64_t count, uint64_t meshes, const std::string& label) {
-  for (uint64_t i = 0; i < count; ++i)
-    if (records[i].mesh >= meshes)
-      fail_invalid(label + ": instance " + str(i) + ": mesh " + str(records[i].mesh) + " out of range (" + str(meshes) + " meshes)");
+void check_instance_table(const fmt::InstanceRef* refs, uint64_t count, uint64_t meshes, uint64_t points,
+                          const std::string& label) {
+  for (uint64_t i = 0; i < count; ++i) {
+    const fmt::InstanceRef& r = refs[i];
+    if (r.mesh >= meshes)
+      fail_invalid(label + ": instance " + str(i) + ": mesh " + str(r.mesh) + " out of range (" + str(meshes) + " meshes)");
+    if (r.point == fmt::InstanceRef::kNoPoint) {
+      if (r.local != 0) fail_invalid(label + ": instance " + str(i) + ": in no batching point but local " + str(r.local));
+    } else if (r.point >= points) {
+      fail_invalid(label + ": instance " + str(i) + ": batching point " + str(r.point) + " out of range (" + str(points) +
+                   " points)");
+    }
+  }
 }
 
 void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris,

@@ -32,8 +32,10 @@ void check_top_level(const fmt::TopNode* nodes, uint64_t count, uint64_t points,
 // Kind 3: each descriptor's chunk_id = its index, its segment range inside section 10 and its bounds finite.
 void check_point_descs(const fmt::BatchingPointDesc* descs, uint64_t count, uint64_t segment_refs, const std::string& label);
 
-// Kind 4: every record's mesh < `meshes`.
-void check_instance_table(const fmt::InstanceRecord* records, uint64_t count, uint64_t meshes, const std::string& label);
+// Kind 4 (SPEC §2.5): every entry's mesh < `meshes`, its point < `points` or none (then local 0). Whether
+// the point holds a record at `local` is its chunk's to say (rtpack-inspect --verify, attribute lookup).
+void check_instance_table(const fmt::InstanceRef* refs, uint64_t count, uint64_t meshes, uint64_t points,
+                          const std::string& label);
 
 // Kind 5 against kind 6: every mesh's source ranges inside the source map (so every triangle count is
 // backed by 8 bytes of the file), segment < `segments` or none.

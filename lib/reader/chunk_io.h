@@ -30,7 +30,7 @@ class ChunkBuilder {
   void append_to_section(const void* data, size_t count);
   // A section whose `count` elements the caller writes into the finished chunk itself (section_data):
   // finish() leaves its bytes unwritten. For a large array computed in place rather than copied in
-  // (the 10^6-record instance table: 112 MB less to fault in and copy).
+  // (the instance table of a 10^6-instance forest: 19 MB less to fault in and copy).
   void add_reserved(fmt::SectionType type, size_t count, size_t elem_size);
   // Where section `index` (in add order) starts in a chunk finish() laid out.
   static uint8_t* section_data(AlignedBytes& chunk, size_t index);

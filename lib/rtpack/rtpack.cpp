@@ -160,7 +160,7 @@ Package Package::open(const std::string& path) {
     };
     rtp::AlignedBytes ib, db, mb;
     uint64_t n = 0;
-    view(rtp::fmt::ChunkKind::kInstances, ib).get<rtp::fmt::InstanceRecord>(rtp::fmt::SectionType::kInstances, n);
+    view(rtp::fmt::ChunkKind::kInstances, ib).get<rtp::fmt::InstanceRef>(rtp::fmt::SectionType::kInstanceRefs, n);
     in.instances = n;
     const rtp::ChunkView dv = view(rtp::fmt::ChunkKind::kBatchingPoints, db);
     const rtp::fmt::BatchingPointDesc* d = dv.get<rtp::fmt::BatchingPointDesc>(rtp::fmt::SectionType::kPointDescs, n);

@@ -126,7 +126,7 @@ Resident read_resident(const PackageReader& r) {
   // The instance table only counted (global ids are checked against it), never held.
   const int64_t ii = r.find(fmt::ChunkKind::kInstances, 0);
   if (ii < 0) fail_invalid("missing instance table 0");
-  s.n_instances = r.section_count(size_t(ii), uint32_t(fmt::SectionType::kInstances), sizeof(fmt::InstanceRecord));
+  s.n_instances = r.section_count(size_t(ii), uint32_t(fmt::SectionType::kInstanceRefs), sizeof(fmt::InstanceRef));
   return s;
 }
 

@@ -91,7 +91,7 @@ class Tracer final : public PackageTracer {
     {  // only its size: hits report scene instance ids, which must be in range
       const AlignedBytes& b = load(fmt::ChunkKind::kInstances, 0);
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), labels_.back());
-      v.get<fmt::InstanceRecord>(fmt::SectionType::kInstances, n_instances);
+      v.get<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs, n_instances);
       chunks_.back() = AlignedBytes();
     }
     // Segments: mesh id -> view.

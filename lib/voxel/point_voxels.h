@@ -57,7 +57,7 @@ struct PointProxy {
 // rounded to float (½u relative in origin and direction) and the watertight test decides within a
 // few u of the larger of |org_local| and |v|; 16 leaves a factor of four. The first term is the
 // grid's `margin`, the factor of |org| its `ray_rel`. `records`: make_instance_records of
-// scene.instances (the package's instance table), the records the tracer moves rays with.
+// scene.instances, the records the tracer moves rays with (the points store them, SPEC §2.4).
 PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
                           const fmt::InstanceRecord* records, const BatchingPoint& point, const VoxelOptions& options);
 

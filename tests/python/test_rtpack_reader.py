@@ -125,7 +125,7 @@ class Derived:
         self.res = {c.kind: c for c in self.chunks if c.kind in rtpack.RESIDENT_KINDS}
         self.descs = self.res[rtpack.KIND_BATCHING_POINTS].get(rtpack.SEC_POINT_DESCS)
         self.meshes = self.res[rtpack.KIND_MESHES].get(rtpack.SEC_MESH_TABLE)
-        self.instances = self.res[rtpack.KIND_INSTANCES].get(rtpack.SEC_INSTANCES)
+        self.instances = self.res[rtpack.KIND_INSTANCES].get(rtpack.SEC_INSTANCE_REFS)
         self.top = self.res[rtpack.KIND_TOP_LEVEL_BVH].get(rtpack.SEC_TOP_NODES)
 
 
@@ -273,6 +273,21 @@ class ReaderVsInspect(unittest.TestCase):
             self.assertEqual(int((~is_piece).sum()), int(dsc["instance_count"]))
             self.assertEqual(int(c.get(rtpack.SEC_MESH_ENTRIES)["triangles"].sum()), int(dsc["unique_triangles"]))
             self.assertEqual(len(c.get(rtpack.SEC_GLOBAL_IDS)), len(recs))
+        # The instance table names each instance's record (SPEC §2.5): that point's global id there is the
+        # instance, its source fields are the record's; every instance some point holds is placed.
+        gids = {c.id: c.get(rtpack.SEC_GLOBAL_IDS) for c in points}
+        recs = {c.id: c.get(rtpack.SEC_INSTANCES) for c in points}
+        held = set()
+        for g in gids.values():
+            held.update(int(x) for x in g)
+        placed = d.instances["point"] != rtpack.NO_POINT
+        self.assertEqual(int(placed.sum()), len(held))
+        for g in np.nonzero(placed)[0][:2000]:
+            ref = d.instances[g]
+            p_, k = int(ref["point"]), int(ref["local"])
+            self.assertEqual(int(gids[p_][k]), int(g))
+            self.assertEqual(int(recs[p_][k]["source_node"]), int(ref["source_node"]))
+            self.assertEqual(int(recs[p_][k]["source_gpu_instance"]), int(ref["source_gpu_instance"]))
         s = j["mesh_segments"]
         segs = [c for c in d.chunks if c.kind == rtpack.KIND_MESH_SEGMENT]
         sel = d.toc[d.toc["kind"] == rtpack.KIND_MESH_SEGMENT]
