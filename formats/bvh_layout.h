@@ -70,29 +70,27 @@ struct alignas(4 * B) LeafBlock {
 static_assert(sizeof(LeafBlock<4>) == 160 && sizeof(LeafBlock<8>) == 320 && sizeof(LeafBlock<16>) == 640);
 static_assert(offsetof(LeafBlock<8>, v1) == 96 && offsetof(LeafBlock<8>, prim) == 288);
 
-// An instance as the tracer sees it (SPEC §2.4, version 4.0), 112 bytes:
+// An instance as the tracer sees it (SPEC §2.4, version 6.0), 72 bytes: what moves a ray, nothing else
+// (6.0 dropped the forward L and the glTF source fields, 40 of 112 bytes no tracer read; the source
+// fields are in the instance table, InstanceRef):
 //   offset 0   double translation[3]     local->world translation T, as the glTF nodes compose it
-//   offset 24  float  linear[9]          local->world 3x3 L, row-major, rounded from double
-//   offset 60  float  inverse_linear[9]  L^-1, row-major, inverted in double then rounded; all zeros
-//                                        when L is singular (the instance is never hit)
-//   offset 96  uint32 mesh               mesh (BVH) index
-//   offset 100 uint32 flags              bit 0: mirrored (det < 0)
-//   offset 104 uint32 source_node        glTF node
-//   offset 108 uint32 source_gpu_instance EXT_mesh_gpu_instancing index or 0xFFFFFFFF
+//   offset 24  float  inverse_linear[9]  world->local 3x3 L^-1, row-major, inverted in double then
+//                                        rounded; all zeros when L is singular (the instance is never hit)
+//   offset 60  uint32 mesh               mesh (BVH) index
+//   offset 64  uint32 flags              bit 0: mirrored (det of the stored L^-1 < 0)
+//   offset 68  uint32 reserved           0
 // A world ray enters the instance as org' = L^-1 (org - T), dir' = L^-1 dir, evaluated in double: the
 // translation is kept apart so a far instance (T = 3000000.3) is as exact as one at the origin.
 struct InstanceRecord {
   double translation[3];
-  float linear[9];
   float inverse_linear[9];
   uint32_t mesh;
   uint32_t flags;
-  uint32_t source_node;
-  uint32_t source_gpu_instance;
+  uint32_t reserved;
 };
-static_assert(sizeof(InstanceRecord) == 112 && alignof(InstanceRecord) == 8);
-static_assert(offsetof(InstanceRecord, linear) == 24 && offsetof(InstanceRecord, inverse_linear) == 60 &&
-              offsetof(InstanceRecord, mesh) == 96);
+static_assert(sizeof(InstanceRecord) == 72 && alignof(InstanceRecord) == 8);
+static_assert(offsetof(InstanceRecord, inverse_linear) == 24 && offsetof(InstanceRecord, mesh) == 60 &&
+              offsetof(InstanceRecord, reserved) == 68);
 
 // One scene instance in the instance table (SPEC §2.5, version 5.0), 20 bytes: where its record is, not
 // the record (each record is stored once, in the batching point that traces it: a 10^6-instance
@@ -102,8 +100,8 @@ static_assert(offsetof(InstanceRecord, linear) == 24 && offsetof(InstanceRecord,
 //                                         unique mesh: its first piece's, by point then local index), or
 //                                         kNoPoint: no point holds it (a mesh without triangles)
 //   offset 8  uint32 local                that record's index in the point's section 5 (0 with kNoPoint)
-//   offset 12 uint32 source_node          glTF node (as the record's)
-//   offset 16 uint32 source_gpu_instance  EXT_mesh_gpu_instancing index or 0xFFFFFFFF (as the record's)
+//   offset 12 uint32 source_node          glTF node
+//   offset 16 uint32 source_gpu_instance  EXT_mesh_gpu_instancing index or 0xFFFFFFFF
 struct InstanceRef {
   static constexpr uint32_t kNoPoint = 0xFFFFFFFFu;
   uint32_t mesh;

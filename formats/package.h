@@ -7,12 +7,13 @@
 namespace rtp::fmt {
 
 inline constexpr char kMagic[8] = {'R', 'T', 'P', 'A', 'C', 'K', '\r', '\n'};
-inline constexpr uint32_t kVersionMajor = 5;  // a reader refuses another major version
+inline constexpr uint32_t kVersionMajor = 6;  // a reader refuses another major version
 inline constexpr uint32_t kVersionMinor = 0;  // a reader accepts any minor version of its major
 // History: 1.0 container; 1.1 attribute chunks (kinds 18, 19) and header flags; 2.0 occlusion-culling
 // DAGs (kind 7, per-point grids) and the header flag kFlagDag; 3.0 DAG leaves used once stored inline
 // in their level-1 node (formats/dag.h inline mask); 4.0 instance records with a double translation;
-// 5.0 the instance table holds InstanceRef (where each record is) instead of a second copy of the records.
+// 5.0 the instance table holds InstanceRef (where each record is) instead of a second copy of the records;
+// 6.0 72-byte instance records (no forward L, no glTF source fields: what moves a ray only).
 inline constexpr uint64_t kAlignment = 4096;  // every chunk and the TOC start at a multiple of this
 
 // File header at offset 0, 128 bytes (the first 4 KiB block is reserved for it), SPEC §1:

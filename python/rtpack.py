@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - depends on the machine
 
 # ---- constants (formats/package.h, chunk.h, dag.h) -------------------------------------------------
 MAGIC = b"RTPACK\r\n"
-VERSION_MAJOR, VERSION_MINOR = 5, 0
+VERSION_MAJOR, VERSION_MINOR = 6, 0
 ALIGNMENT = 4096
 CHUNK_MAGIC = 0x48435452  # "RTCH"
 MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
@@ -117,9 +117,9 @@ TOC_ENTRY = _dt([("kind", "<u4"), ("compression", "<u4"), ("id", "<u8"), ("offse
 # SPEC §4 ChunkHeader (16 B), SectionEntry (24 B)
 CHUNK_HEADER = _dt([("magic", "<u4"), ("kind", "<u4"), ("section_count", "<u4"), ("reserved", "<u4")])
 SECTION_ENTRY = _dt([("type", "<u4"), ("elem_size", "<u4"), ("offset", "<u8"), ("count", "<u8")])
-# SPEC §2.4 InstanceRecord (112 B): world = linear @ local + translation (double), local = inverse_linear @ (world - translation)
-INSTANCE_RECORD = _dt([("translation", "<f8", (3,)), ("linear", "<f4", (3, 3)), ("inverse_linear", "<f4", (3, 3)),
-                       ("mesh", "<u4"), ("flags", "<u4"), ("source_node", "<u4"), ("source_gpu_instance", "<u4")])
+# SPEC §2.4 InstanceRecord (72 B): local = inverse_linear @ (world - translation) (translation in double)
+INSTANCE_RECORD = _dt([("translation", "<f8", (3,)), ("inverse_linear", "<f4", (3, 3)), ("mesh", "<u4"),
+                       ("flags", "<u4"), ("reserved", "<u4")])
 # SPEC §2.5 InstanceRef (20 B): where the record of a scene instance is (batching point, index in its section 5)
 INSTANCE_REF = _dt([("mesh", "<u4"), ("point", "<u4"), ("local", "<u4"), ("source_node", "<u4"),
                     ("source_gpu_instance", "<u4")])
@@ -164,8 +164,8 @@ def _check_layouts():
     assert off(HEADER, "bounds_lo") == 72 and off(HEADER, "bvh_width") == 96 and off(HEADER, "header_crc32c") == 124
     assert TOC_ENTRY.itemsize == 48 and off(TOC_ENTRY, "offset") == 16 and off(TOC_ENTRY, "crc32c") == 40
     assert CHUNK_HEADER.itemsize == 16 and SECTION_ENTRY.itemsize == 24 and off(SECTION_ENTRY, "offset") == 8
-    assert INSTANCE_RECORD.itemsize == 112 and off(INSTANCE_RECORD, "linear") == 24
-    assert off(INSTANCE_RECORD, "inverse_linear") == 60 and off(INSTANCE_RECORD, "mesh") == 96
+    assert INSTANCE_RECORD.itemsize == 72 and off(INSTANCE_RECORD, "inverse_linear") == 24
+    assert off(INSTANCE_RECORD, "mesh") == 60 and off(INSTANCE_RECORD, "reserved") == 68
     assert INSTANCE_REF.itemsize == 20 and off(INSTANCE_REF, "local") == 8 and off(INSTANCE_REF, "source_gpu_instance") == 16
     assert MESH_ENTRY.itemsize == 32 and off(MESH_ENTRY, "triangles") == 24
     assert MESH_INFO.itemsize == 32 and off(MESH_INFO, "source_tri_first") == 24
@@ -175,7 +175,6 @@ def _check_layouts():
     assert TOP_NODE.itemsize == 128 and off(TOP_NODE, "child") == 96 and off(TOP_NODE, "parent") == 112
     assert DAG_GRID.itemsize == 32 and off(DAG_GRID, "cell") == 12 and off(DAG_GRID, "root") == 20
     assert off(DAG_GRID, "ray_rel") == 28
-    assert INSTANCE_RECORD.itemsize == 112 and off(INSTANCE_RECORD, "mesh") == 96
     assert [wide_node(w).itemsize for w in (4, 8, 16)] == [144, 288, 576]
     assert off(wide_node(8), "hi") == 96 and off(wide_node(8), "child") == 192 and off(wide_node(8), "order") == 224
     assert [leaf_block(b).itemsize for b in (4, 8, 16)] == [160, 320, 640]

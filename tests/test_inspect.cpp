@@ -200,7 +200,7 @@ std::vector<Corruption> corruptions() {
                  uint32_t* ids = section<uint32_t>(chunk, SectionType::kInstanceIds);
                  ids[1] = ids[0];
                }});
-  c.push_back({"global instance id", kForest, fmt::ChunkKind::kBatchingPoint, 6, "differ", [](uint8_t* chunk) {
+  c.push_back({"global instance id", kForest, fmt::ChunkKind::kBatchingPoint, 6, "places in", [](uint8_t* chunk) {
                  uint32_t* g = section<uint32_t>(chunk, SectionType::kGlobalIds);
                  g[0] = g[1];
                }});

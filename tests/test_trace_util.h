@@ -220,13 +220,10 @@ TestScene<W, B> build_scene(std::vector<std::vector<Tri>> meshes, std::vector<Te
   for (uint32_t i = 0; i < s.placements.size(); ++i) {
     const TestInstance& p = s.placements[i];
     fmt::InstanceRecord rec{};
-    const Affine inv = invert(p.local_to_world);  // SPEC §2.4: double T, float L and L^-1
+    const Affine inv = invert(p.local_to_world);  // SPEC §2.4: double T, float L^-1
     for (int r = 0; r < 3; ++r) {
       rec.translation[r] = p.local_to_world[size_t(4 * r + 3)];
-      for (int c = 0; c < 3; ++c) {
-        rec.linear[3 * r + c] = p.local_to_world[size_t(4 * r + c)];
-        rec.inverse_linear[3 * r + c] = inv[size_t(4 * r + c)];
-      }
+      for (int c = 0; c < 3; ++c) rec.inverse_linear[3 * r + c] = inv[size_t(4 * r + c)];
     }
     rec.mesh = p.mesh;
     s.instances.push_back(rec);

@@ -59,10 +59,9 @@ std::string no_triangles_warning(size_t i, const Instance& inst) {
   return instance_label(i, inst) + ": mesh " + std::to_string(inst.mesh) + " has no triangles, left out of the instance BVH";
 }
 
-// The fields of a record that move a ray (SPEC §2.4): T, L, L^-1 and the mirrored flag.
+// The fields of a record that move a ray (SPEC §2.4): T, L^-1 and the mirrored flag.
 bool same_move(const fmt::InstanceRecord& a, const fmt::InstanceRecord& b) {
   return std::memcmp(a.translation, b.translation, sizeof a.translation) == 0 &&
-         std::memcmp(a.linear, b.linear, sizeof a.linear) == 0 &&
          std::memcmp(a.inverse_linear, b.inverse_linear, sizeof a.inverse_linear) == 0 && a.flags == b.flags;
 }
 

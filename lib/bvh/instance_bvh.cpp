@@ -41,23 +41,14 @@ bool invert_affine(const Affine3x4& m, double inv[12]) {
 fmt::InstanceRecord make_instance_record(const Instance& instance) {
   fmt::InstanceRecord rec{};
   const Affine3x4& m = instance.transform;
-  for (int r = 0; r < 3; ++r) {
-    rec.translation[r] = m(r, 3);
-    for (int c = 0; c < 3; ++c) rec.linear[3 * r + c] = float(m(r, c));
-  }
+  for (int r = 0; r < 3; ++r) rec.translation[r] = m(r, 3);
   double inv[12];
   if (invert_affine(m, inv)) {
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) rec.inverse_linear[3 * r + c] = float(inv[4 * r + c]);
   }
   rec.mesh = instance.mesh;
-  const float* l = rec.linear;  // the determinant of what is stored, as a reader checks it
-  const double det = double(l[0]) * (double(l[4]) * l[8] - double(l[5]) * l[7]) -
-                     double(l[1]) * (double(l[3]) * l[8] - double(l[5]) * l[6]) +
-                     double(l[2]) * (double(l[3]) * l[7] - double(l[4]) * l[6]);
-  rec.flags = det < 0 ? 1u : 0u;
-  rec.source_node = instance.node;
-  rec.source_gpu_instance = instance.gpu_instance;
+  rec.flags = det3_of(rec.inverse_linear) < 0 ? 1u : 0u;  // of what is stored, as a reader checks it
   return rec;
 }
 

@@ -94,6 +94,12 @@ struct Mat4d {
 
 Mat4d operator*(const Mat4d& a, const Mat4d& b);
 
+// The determinant of a row-major float 3x3 (an instance record's L^-1), in double.
+inline double det3_of(const float m[9]) {
+  const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
+  return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+}
+
 // Affine 3x4 (row-major, last column = translation), double storage: the instance transform as the
 // glTF node hierarchy composes it (a translation of 3000000.3 stays 3000000.3; SPEC §2.4 keeps it so).
 struct Affine3x4 {

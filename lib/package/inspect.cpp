@@ -166,13 +166,28 @@ void read_resident(Ctx& c) {
   check_resident(c);
 }
 
-// The image of `b` under the record's transform (SPEC §2.4: float 3x3 L, double T), in double, with a
-// tolerance per axis of two float steps at the magnitude of the terms (a writer rounding the
-// transformed box to float stays inside; L was rounded from the double the writer used).
+// The image of `b` under the record's transform (SPEC §2.4: double T, float L^-1; L is L^-1 inverted
+// here in double), with a tolerance per axis of two float steps at the magnitude of the terms, the
+// linear ones scaled by L's condition number (L^-1 was rounded from the double inverse of the L the
+// writer placed the box with; inverting the rounded floats moves L by up to about that much).
 ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   ItemBound out;
   if (b.empty()) return out;
-  const float* m = rec.linear;
+  const float* li = rec.inverse_linear;
+  const double det = det3_of(li);
+  if (!(det != 0) || !std::isfinite(det)) return out;  // singular: never hit, nothing to contain
+  double m[9];  // L = adj(L^-1) / det, row-major
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const int r1 = (c + 1) % 3, r2 = (c + 2) % 3, c1 = (r + 1) % 3, c2 = (r + 2) % 3;
+      m[3 * r + c] = (double(li[3 * r1 + c1]) * li[3 * r2 + c2] - double(li[3 * r1 + c2]) * li[3 * r2 + c1]) / det;
+    }
+  double norm_l = 0, norm_li = 0;  // infinity norms
+  for (int r = 0; r < 3; ++r) {
+    norm_l = std::max(norm_l, std::fabs(m[3 * r]) + std::fabs(m[3 * r + 1]) + std::fabs(m[3 * r + 2]));
+    norm_li = std::max(norm_li, std::fabs(double(li[3 * r])) + std::fabs(double(li[3 * r + 1])) + std::fabs(double(li[3 * r + 2])));
+  }
+  const double cond = std::max(1.0, norm_l * norm_li);
   for (int corner = 0; corner < 8; ++corner) {
     double p[3], w[3];
     for (int a = 0; a < 3; ++a) p[a] = (corner >> a & 1) ? b.hi[a] : b.lo[a];
@@ -181,9 +196,9 @@ ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
     out.box.grow(w);
   }
   for (int r = 0; r < 3; ++r) {
-    double mag = std::fabs(rec.translation[r]);
-    for (int a = 0; a < 3; ++a) mag += std::fabs(double(m[3 * r + a])) * std::max(std::fabs(b.lo[a]), std::fabs(b.hi[a]));
-    out.tol[r] = 2.0 * double(FLT_EPSILON) * mag;
+    double lin = 0;
+    for (int a = 0; a < 3; ++a) lin += std::fabs(m[3 * r + a]) * std::max(std::fabs(b.lo[a]), std::fabs(b.hi[a]));
+    out.tol[r] = 2.0 * double(FLT_EPSILON) * (std::fabs(rec.translation[r]) + 2.0 * cond * lin);
   }
   return out;
 }

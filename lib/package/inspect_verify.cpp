@@ -38,11 +38,6 @@ Box3d top_lane(const fmt::TopNode& n, int l) {
   return b;
 }
 
-double det3(const float m[9]) {  // row-major 3x3, in double
-  const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
-  return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
-}
-
 // Counts `prims` into `count` (one counter per triangle of the mesh). Returns what is wrong with these
 // prims: ids out of range, triangles already counted (here or by an earlier piece); "" when fine.
 std::string coverage(const std::vector<uint32_t>& prims, uint64_t total, std::vector<uint8_t>& count) {
@@ -370,9 +365,7 @@ void Verifier::point(const PointData& p) {
     }
     const fmt::InstanceRef& gref = res_.instances[g];
     const fmt::MeshInfo& mi = res_.meshes[gref.mesh];
-    if (((rec.flags & 1u) != 0) != (det3(rec.linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
-    if (rec.source_node != gref.source_node || rec.source_gpu_instance != gref.source_gpu_instance)
-      out_.add(what + ": source node or GPU instance differ from instance " + str(g) + " of the instance table");
+    if (((rec.flags & 1u) != 0) != (det3_of(rec.inverse_linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
     if (piece) {
       const uint32_t entry = p.slots[rec.mesh] & ~fmt::kPieceBit;
       if (mi.flags & 1u) out_.add(what + ": a piece of instance " + str(g) + ", whose mesh " + str(gref.mesh) + " is instanced");

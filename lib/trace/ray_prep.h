@@ -97,7 +97,7 @@ RTP_KERNEL_INLINE void setup_tri_ray(const float org[3], const float dir[3], flo
 RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
 #if defined(__AVX2__)
   // The same twelve comparisons in three vector compares (reads stay inside the record: the fourth double
-  // of the translation load is linear[0..1], masked out).
+  // of the translation load is inverse_linear[0..1], masked out).
   const __m256d t = _mm256_cmp_pd(_mm256_loadu_pd(inst.translation), _mm256_setzero_pd(), _CMP_EQ_OQ);
   const __m256 l = _mm256_cmp_ps(_mm256_loadu_ps(inst.inverse_linear), _mm256_setr_ps(1, 0, 0, 0, 1, 0, 0, 0), _CMP_EQ_OQ);
   return (_mm256_movemask_pd(t) & 7) == 7 && _mm256_movemask_ps(l) == 0xFF && inst.inverse_linear[8] == 1.0f;
@@ -117,7 +117,7 @@ RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
 struct InstanceMove {
   __m256d c0, c1, c2, t;
   RTP_KERNEL_INLINE explicit InstanceMove(const fmt::InstanceRecord& inst) {
-    // Reads stay inside the record (rows of 4 floats from 60, 72, 84).
+    // Reads stay inside the record (rows of 4 floats from 24, 36, 48; the last one's fourth is `mesh`).
     const float* m = inst.inverse_linear;
     __m128 r0 = _mm_loadu_ps(m), r1 = _mm_loadu_ps(m + 3), r2 = _mm_loadu_ps(m + 6), r3 = _mm_setzero_ps();
     _MM_TRANSPOSE4_PS(r0, r1, r2, r3);  // r0..r2: the columns (m[c], m[3+c], m[6+c], garbage)

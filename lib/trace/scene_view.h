@@ -11,7 +11,7 @@ namespace rtp {
 
 inline constexpr uint32_t kNoDirectInstance = 0xFFFFFFFFu;
 
-// 0 when the `count` records are one identity record (T = 0, L = L^-1 = I exactly: transform_ray would
+// 0 when the `count` records are one identity record (T = 0, L^-1 = I exactly: transform_ray would
 // return the world ray unchanged), else kNoDirectInstance. For the builders of views (baseline code).
 inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t count) {
   if (count != 1) return kNoDirectInstance;
@@ -19,7 +19,7 @@ inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t cou
   for (int a = 0; a < 3; ++a) {
     if (r.translation[a] != 0) return kNoDirectInstance;
     for (int b = 0; b < 3; ++b)
-      if (r.linear[3 * a + b] != (a == b ? 1.0f : 0.0f) || r.inverse_linear[3 * a + b] != (a == b ? 1.0f : 0.0f))
+      if (r.inverse_linear[3 * a + b] != (a == b ? 1.0f : 0.0f))
         return kNoDirectInstance;
   }
   return 0;

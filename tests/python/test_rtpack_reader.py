@@ -286,8 +286,9 @@ class ReaderVsInspect(unittest.TestCase):
             ref = d.instances[g]
             p_, k = int(ref["point"]), int(ref["local"])
             self.assertEqual(int(gids[p_][k]), int(g))
-            self.assertEqual(int(recs[p_][k]["source_node"]), int(ref["source_node"]))
-            self.assertEqual(int(recs[p_][k]["source_gpu_instance"]), int(ref["source_gpu_instance"]))
+            # the record's mirrored flag is the sign of its stored L^-1's determinant (SPEC §2.4)
+            det = np.linalg.det(recs[p_][k]["inverse_linear"].astype(np.float64))
+            self.assertEqual(int(recs[p_][k]["flags"]) & 1, 1 if det < 0 else 0)
         s = j["mesh_segments"]
         segs = [c for c in d.chunks if c.kind == rtpack.KIND_MESH_SEGMENT]
         sel = d.toc[d.toc["kind"] == rtpack.KIND_MESH_SEGMENT]
@@ -542,12 +543,12 @@ class Refusals(unittest.TestCase):
         table = np.frombuffer(raw, rtpack.SECTION_ENTRY, int(np.frombuffer(raw, rtpack.CHUNK_HEADER, 1)[0]["section_count"]), 16)
         k = int(np.nonzero(table["type"] == rtpack.SEC_INSTANCES)[0][0])
         bad = bytearray(self.good)
-        struct.pack_into("<I", bad, off + 16 + 24 * k + 4, 100)  # InstanceRecord elem_size 112 -> 100
+        struct.pack_into("<I", bad, off + 16 + 24 * k + 4, 100)  # InstanceRecord elem_size 72 -> 100
         toc_at = int(self.header["toc_offset"]) + self.point * int(self.header["toc_entry_size"])
         struct.pack_into("<I", bad, toc_at + 40, rtpack.crc32c(bytes(bad[off:off + len(raw)])))
         patch_header(bad)
         msg = self.refused(bytes(bad), "elem-size", rtpack.MalformedError, whole=True)
-        self.assertEqual(msg, f"{self.label}: section 5 has elements of 100 bytes, expected 112")
+        self.assertEqual(msg, f"{self.label}: section 5 has elements of 100 bytes, expected 72")
         bad = bytearray(self.good)  # a stored chunk whose raw_size disagrees
         struct.pack_into("<Q", bad, toc_at + 32, len(raw) + 64)
         patch_header(bad)
