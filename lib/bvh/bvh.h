@@ -124,8 +124,8 @@ double octant_key(const float lo[3], const float hi[3], int octant);
 // The 3x4 inverse of `m`, computed in double. False when m is singular (|det| tiny or not finite).
 bool invert_affine(const Affine3x4& m, double inverse[12]);
 
-// SPEC §2.4 record: the translation in double, the 3x3 part rounded to float, its inverse taken in
-// double then rounded (all zeros if singular), flags bit 0 = det < 0.
+// SPEC §2.4 record: the translation in double, the inverse of the 3x3 part taken in double then
+// rounded to float (all zeros if singular), flags bit 0 = det of that stored inverse < 0.
 fmt::InstanceRecord make_instance_record(const Instance& instance);
 // make_instance_record of every instance into out[0 .. instances.size()), in parallel (the writer's
 // records, computed once: batching points and culling proxies copy from them instead of recomputing).
