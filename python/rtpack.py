@@ -465,6 +465,39 @@ class Package:
         i = self.find(kind, 0)
         return None if i is None else self.chunk(i)
 
+    def instance_records(self):
+        """Every scene instance's record in scene order (INSTANCE_RECORD[], one per instance table entry).
+
+        Since format 5.0 the records live only in the batching points (SPEC §2.5): each is read from the
+        point the instance table names, at its local index. `mesh` holds the scene mesh (the table's), not
+        the point-local mesh slot the stored record has. An instance no point holds (its mesh has no
+        triangles: point NO_POINT) gets an all-zero row. Reads each batching point that holds an instance
+        once; raises MalformedError when a place does not hold its instance."""
+        refs = self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)
+        out = np.zeros(len(refs), dtype=INSTANCE_RECORD)
+        placed = np.nonzero(refs["point"] != NO_POINT)[0]
+        for p in np.unique(refs["point"][placed]):
+            i = self.find(KIND_BATCHING_POINT, int(p))
+            if i is None:
+                raise MalformedError(f"instance table: batching point {int(p)} has no chunk")
+            c = self.chunk(i)
+            recs, gids = c.get(SEC_INSTANCES), c.get(SEC_GLOBAL_IDS)
+            here = placed[refs["point"][placed] == p]
+            local = refs["local"][here].astype(np.int64)
+            bad = (local >= len(recs)) | (local >= len(gids))
+            if bad.any():
+                g = int(here[np.argmax(bad)])
+                raise MalformedError(f"instance table: instance {g}: local index {int(refs['local'][g])} outside "
+                                     f"{c.label}'s {len(recs)} records")
+            wrong = gids[local] != here
+            if wrong.any():
+                g = int(here[np.argmax(wrong)])
+                raise MalformedError(f"instance table: instance {g} places it at {c.label} record "
+                                     f"{int(refs['local'][g])}, which holds instance {int(gids[refs['local'][g]])}")
+            out[here] = recs[local]
+        out["mesh"] = refs["mesh"]
+        return out
+
     def metadata(self):
         """The metadata JSON (SPEC §4.1, section 14) as a dict."""
         c = self.resident(KIND_METADATA)

@@ -302,6 +302,36 @@ class ReaderVsInspect(unittest.TestCase):
         self.assertEqual(j["top_level"], {"nodes": len(d.top),
                                           "max_depth": int(d.top["depth"].max()) + 1 if len(d.top) else 0})
 
+    def test_instance_records(self):
+        # Package.instance_records() against the glTF write_octahedra() wrote: its four nodes' world
+        # translations and the inverse of their linear parts (identity three times, then scale (2, 1, 1)).
+        if "octahedra-attrs" in self.packages or not ONLY:
+            path, d, j = self.packages["octahedra-attrs"]
+            with rtpack.Package(path) as p:
+                r = p.instance_records()
+            np.testing.assert_array_equal(r["translation"], [[0, 0, 0], [3, 0, 0], [6, 0, 0], [0, 3, 0]])
+            want = np.repeat(np.eye(3, dtype=np.float32)[None], 4, axis=0)
+            want[3, 0, 0] = 0.5
+            np.testing.assert_array_equal(r["inverse_linear"], want)
+            self.assertEqual(r["mesh"].tolist(), [0, 0, 0, 1])
+            self.assertEqual((r["flags"] & 1).tolist(), [0, 0, 0, 0])
+        self.for_each(self._instance_records)
+
+    def _instance_records(self, path, d, j):
+        with rtpack.Package(path) as p:
+            r = p.instance_records()
+        self.assertEqual(len(r), len(d.instances))
+        self.assertEqual(r["mesh"].tolist(), d.instances["mesh"].tolist())
+        placed = d.instances["point"] != rtpack.NO_POINT
+        self.assertTrue(np.all(r["translation"][~placed] == 0))
+        # Each placed row is its point's record there (mesh aside); the determinant of L^-1 is never 0.
+        recs = {c.id: c.get(rtpack.SEC_INSTANCES) for c in d.chunks if c.kind == rtpack.KIND_BATCHING_POINT}
+        for g in np.nonzero(placed)[0][:500]:
+            want = recs[int(d.instances[g]["point"])][int(d.instances[g]["local"])]
+            self.assertEqual(r[g]["translation"].tobytes(), want["translation"].tobytes())
+            self.assertEqual(r[g]["inverse_linear"].tobytes(), want["inverse_linear"].tobytes())
+            self.assertEqual(int(r[g]["flags"]), int(want["flags"]))
+
     def test_dag(self):
         self.for_each(self._dag)
 
