@@ -27,6 +27,7 @@ struct BudgetBenchConfig {
   std::string culling = "both";  // --culling on|off|both
   std::string save_rays;         // --save-rays PREFIX: PREFIX-KIND.rays (formats/ray_file.h) for rtpack-trace
   bool json = false;
+  int reps = 3;  // --reps: each out-of-core run and the in-core reference, best of this many (interleaved)
   Isa isa = Isa::kScalar;
 };
 

@@ -503,7 +503,7 @@ int main(int argc, char** argv) {
       budget.scene_path = cfg.scene_path;
       budget.allow_paths = cfg.allow_paths;
       budget.threads = threads == "all" ? 0 : cfg.threads[0];
-      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa;
+      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa, budget.reps = cfg.reps;
       if (app.count("--rays")) budget.rays = cfg.rays;
       if (app.count("--kinds")) budget.kinds = cfg.kinds;
       return bench::run_budget_bench(budget);
