@@ -135,6 +135,42 @@ TEST_F(OracleBench, MultiHitRecordsAreCheckedAnswers) {
   EXPECT_EQ(run(scene + " --multi-hit 4 --convert").code, 1);
 }
 
+// --out-of-core: one record per (budget, culling) run, each the best of --reps interleaved runs (after an
+// untimed warm-up, so no run pays the first touch of the cache's memory alone), every answer byte-identical to
+// the in-core reference, and the visits and culled visits of the run reported.
+TEST_F(OracleBench, OutOfCoreRecordsAreBestOfRepsAndChecked) {
+  const std::string scene = kSamples + "/generated/forest-small.glb";
+  const fs::path pkg = fs::temp_directory_path() / ("rtp_oracle_bench_ooc_" + std::to_string(getpid()) + ".rtp");
+  const std::string convert = std::string(RTP_BINARY_DIR "/rtpack-convert") + " -q " + q(scene) + " -o " + q(pkg.string());
+  ASSERT_EQ(std::system(convert.c_str()), 0) << convert;
+  const ToolRun r = run(q(scene) + " --out-of-core " + q(pkg.string()) +
+                        " --budgets 100,75 --kinds random,bounce --rays 2000 --reps 2 --threads 1 --json");
+  fs::remove(pkg);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j.value("schema_version", 0), 3);
+  size_t in_core = 0, ooc = 0;
+  std::set<std::pair<double, bool>> runs;
+  for (const json& rec : j["records"]) {
+    if (rec["mode"] == "in_core") {
+      ++in_core;
+      EXPECT_GT(rec["seconds"].get<double>(), 0.0);
+      continue;
+    }
+    ++ooc;
+    runs.insert({rec["budget_percent"].get<double>(), rec["cull"].get<bool>()});
+    EXPECT_EQ(rec["reps"].get<int>(), 2) << rec.dump();
+    EXPECT_TRUE(rec["identical_to_in_core"].get<bool>()) << rec.dump();
+    EXPECT_GT(rec["point_visits"].get<uint64_t>(), 0u) << rec.dump();
+    EXPECT_LE(rec["culled_visits"].get<uint64_t>(), rec["point_visits"].get<uint64_t>());
+    if (!rec["cull"].get<bool>()) EXPECT_EQ(rec["culled_visits"].get<uint64_t>(), 0u) << rec.dump();
+    EXPECT_GT(rec["chunks_loaded"].get<uint64_t>(), 0u);
+  }
+  EXPECT_EQ(in_core, 2u);
+  EXPECT_EQ(ooc, 8u);  // 2 kinds x 2 budgets x culling on and off
+  EXPECT_EQ(runs.size(), 4u);
+}
+
 TEST_F(OracleBench, DefaultsAreTheQuickRun) {
   const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --json");
   ASSERT_EQ(r.code, 0) << r.out;
