@@ -466,34 +466,26 @@ class Package:
         return None if i is None else self.chunk(i)
 
     def instance_records(self):
-        """Every scene instance's record in scene order (INSTANCE_RECORD[], one per instance table entry).
-
-        Since format 5.0 the records live only in the batching points (SPEC §2.5): each is read from the
-        point the instance table names, at its local index. `mesh` holds the scene mesh (the table's), not
-        the point-local mesh slot the stored record has. An instance no point holds (its mesh has no
-        triangles: point NO_POINT) gets an all-zero row. Reads each batching point that holds an instance
-        once; raises MalformedError when a place does not hold its instance."""
+        """Every scene instance's record in instance-table order (INSTANCE_RECORD[]), read from the batching
+        point and local index its InstanceRef names (SPEC §2.5: records live only in the points since 5.0).
+        `mesh` is the scene mesh, not the stored point-local slot; an instance no point holds (a mesh without
+        triangles) is an all-zero row. Raises MalformedError when a place holds another instance."""
         refs = self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)
         out = np.zeros(len(refs), dtype=INSTANCE_RECORD)
         placed = np.nonzero(refs["point"] != NO_POINT)[0]
         for p in np.unique(refs["point"][placed]):
-            i = self.find(KIND_BATCHING_POINT, int(p))
-            if i is None:
-                raise MalformedError(f"instance table: batching point {int(p)} has no chunk")
-            c = self.chunk(i)
-            recs, gids = c.get(SEC_INSTANCES), c.get(SEC_GLOBAL_IDS)
             here = placed[refs["point"][placed] == p]
+            i = self.find(KIND_BATCHING_POINT, int(p))
+            c = None if i is None else self.chunk(i)
+            recs = c.get(SEC_INSTANCES) if c else np.zeros(0, INSTANCE_RECORD)
+            gids = c.get(SEC_GLOBAL_IDS) if c else np.zeros(0, "<u4")
             local = refs["local"][here].astype(np.int64)
-            bad = (local >= len(recs)) | (local >= len(gids))
-            if bad.any():
-                g = int(here[np.argmax(bad)])
-                raise MalformedError(f"instance table: instance {g}: local index {int(refs['local'][g])} outside "
-                                     f"{c.label}'s {len(recs)} records")
-            wrong = gids[local] != here
-            if wrong.any():
-                g = int(here[np.argmax(wrong)])
-                raise MalformedError(f"instance table: instance {g} places it at {c.label} record "
-                                     f"{int(refs['local'][g])}, which holds instance {int(gids[refs['local'][g]])}")
+            ok = local < min(len(recs), len(gids))
+            ok[ok] = gids[local[ok]] == here[ok]
+            if not ok.all():
+                g = int(here[np.argmin(ok)])
+                raise MalformedError(f"instance table: instance {g} is placed at batching point {int(p)} record "
+                                     f"{int(refs['local'][g])}, which does not hold it")
             out[here] = recs[local]
         out["mesh"] = refs["mesh"]
         return out

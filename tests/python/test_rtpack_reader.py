@@ -303,34 +303,34 @@ class ReaderVsInspect(unittest.TestCase):
                                           "max_depth": int(d.top["depth"].max()) + 1 if len(d.top) else 0})
 
     def test_instance_records(self):
-        # Package.instance_records() against the glTF write_octahedra() wrote: its four nodes' world
-        # translations and the inverse of their linear parts (identity three times, then scale (2, 1, 1)).
+        # Package.instance_records() against the glTF write_octahedra() wrote (four nodes: three translated
+        # copies of mesh 0, then mesh 1 scaled by (2, 1, 1)), then on every package against its points.
         if "octahedra-attrs" in self.packages or not ONLY:
-            path, d, j = self.packages["octahedra-attrs"]
-            with rtpack.Package(path) as p:
+            with rtpack.Package(self.packages["octahedra-attrs"][0]) as p:
                 r = p.instance_records()
-            np.testing.assert_array_equal(r["translation"], [[0, 0, 0], [3, 0, 0], [6, 0, 0], [0, 3, 0]])
-            want = np.repeat(np.eye(3, dtype=np.float32)[None], 4, axis=0)
-            want[3, 0, 0] = 0.5
-            np.testing.assert_array_equal(r["inverse_linear"], want)
-            self.assertEqual(r["mesh"].tolist(), [0, 0, 0, 1])
-            self.assertEqual((r["flags"] & 1).tolist(), [0, 0, 0, 0])
+                np.testing.assert_array_equal(r["translation"], [[0, 0, 0], [3, 0, 0], [6, 0, 0], [0, 3, 0]])
+                want = np.repeat(np.eye(3, dtype=np.float32)[None], 4, axis=0)
+                want[3, 0, 0] = 0.5
+                np.testing.assert_array_equal(r["inverse_linear"], want)
+                self.assertEqual((r["mesh"].tolist(), (r["flags"] & 1).tolist()), ([0, 0, 0, 1], [0, 0, 0, 0]))
+                refs = p.resident(rtpack.KIND_INSTANCES)
+                refs.sections[rtpack.SEC_INSTANCE_REFS] = refs.get(rtpack.SEC_INSTANCE_REFS).copy()
+                refs.sections[rtpack.SEC_INSTANCE_REFS]["local"][1] += 1  # a place that holds another instance
+                p.resident = lambda kind: refs if kind == rtpack.KIND_INSTANCES else rtpack.Package.resident(p, kind)
+                self.assertRaisesRegex(rtpack.MalformedError, "instance 1 is placed at", p.instance_records)
         self.for_each(self._instance_records)
 
     def _instance_records(self, path, d, j):
         with rtpack.Package(path) as p:
             r = p.instance_records()
-        self.assertEqual(len(r), len(d.instances))
         self.assertEqual(r["mesh"].tolist(), d.instances["mesh"].tolist())
         placed = d.instances["point"] != rtpack.NO_POINT
         self.assertTrue(np.all(r["translation"][~placed] == 0))
-        # Each placed row is its point's record there (mesh aside); the determinant of L^-1 is never 0.
         recs = {c.id: c.get(rtpack.SEC_INSTANCES) for c in d.chunks if c.kind == rtpack.KIND_BATCHING_POINT}
-        for g in np.nonzero(placed)[0][:500]:
+        for g in np.nonzero(placed)[0][:500]:  # each placed row is its point's record there, mesh aside
             want = recs[int(d.instances[g]["point"])][int(d.instances[g]["local"])]
-            self.assertEqual(r[g]["translation"].tobytes(), want["translation"].tobytes())
-            self.assertEqual(r[g]["inverse_linear"].tobytes(), want["inverse_linear"].tobytes())
-            self.assertEqual(int(r[g]["flags"]), int(want["flags"]))
+            for k in ("translation", "inverse_linear", "flags"):
+                self.assertEqual(r[g][k].tobytes(), want[k].tobytes(), k)
 
     def test_dag(self):
         self.for_each(self._dag)
