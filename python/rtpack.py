@@ -473,9 +473,12 @@ class Package:
         refs = self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)
         out = np.zeros(len(refs), dtype=INSTANCE_RECORD)
         placed = np.nonzero(refs["point"] != NO_POINT)[0]
-        for p in np.unique(refs["point"][placed]):
-            here = placed[refs["point"][placed] == p]
-            i = self.find(KIND_BATCHING_POINT, int(p))
+        placed = placed[np.argsort(refs["point"][placed], kind="stable")]  # grouped by point, one pass
+        pts = refs["point"][placed]
+        starts = np.flatnonzero(np.r_[True, pts[1:] != pts[:-1]]) if len(pts) else np.zeros(0, np.int64)
+        for s, e in zip(starts, np.r_[starts[1:], len(pts)]):
+            p, here = int(pts[s]), placed[s:e]
+            i = self.find(KIND_BATCHING_POINT, p)
             c = None if i is None else self.chunk(i)
             recs = c.get(SEC_INSTANCES) if c else np.zeros(0, INSTANCE_RECORD)
             gids = c.get(SEC_GLOBAL_IDS) if c else np.zeros(0, "<u4")
@@ -484,7 +487,7 @@ class Package:
             ok[ok] = gids[local[ok]] == here[ok]
             if not ok.all():
                 g = int(here[np.argmin(ok)])
-                raise MalformedError(f"instance table: instance {g} is placed at batching point {int(p)} record "
+                raise MalformedError(f"instance table: instance {g} is placed at batching point {p} record "
                                      f"{int(refs['local'][g])}, which does not hold it")
             out[here] = recs[local]
         out["mesh"] = refs["mesh"]
