@@ -349,6 +349,31 @@ TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
   EXPECT_GE(r["peak_rss_mib"].get<double>(), r["peak_rss_mib_convert"].get<double>());
 }
 
+// --no-dag: the package rtpack-convert --no-dag writes (no DAG pool, smaller), said in the record, so a
+// run beside the default one shows what the culling DAGs cost the convert.
+TEST_F(ConvertBench, NoDagTimesTheConvertersNoDagPackage) {
+  const std::string scene = kSamples + "/generated/forest-small.glb";
+  const fs::path with = dir / "with.rtp", without = dir / "without.rtp", tool_out = dir / "tool.rtp";
+  const std::string common = q(scene) + " --convert --reps 1 --threads 1 --json --convert-output ";
+  const FullRun a = run_full(kTool, common + q(with.string()), dir);
+  ASSERT_EQ(a.code, 0) << a.err;
+  const json ra = json::parse(a.out).at(0);
+  const FullRun b = run_full(kTool, common + q(without.string()) + " --no-dag", dir);
+  ASSERT_EQ(b.code, 0) << b.err;
+  const json rb = json::parse(b.out).at(0);
+  EXPECT_EQ(ra["dag"], true);
+  EXPECT_EQ(rb["dag"], false);
+  EXPECT_TRUE(ra["sections"].contains("dag_pool")) << ra["sections"].dump();
+  EXPECT_FALSE(rb["sections"].contains("dag_pool")) << rb["sections"].dump();
+  EXPECT_LT(rb["package_bytes"].get<uint64_t>(), ra["package_bytes"].get<uint64_t>());
+  EXPECT_EQ(rb["chunks"].get<uint64_t>() + 1, ra["chunks"].get<uint64_t>());  // the pool is one chunk
+  const FullRun c = run_full(RTP_BINARY_DIR "/rtpack-convert", q(scene) + " --no-dag -q -o " + q(tool_out.string()), dir);
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_EQ(slurp(without), slurp(tool_out)) << "rtpack-bench --convert --no-dag and rtpack-convert --no-dag differ";
+  EXPECT_NE(b.err.find("no culling DAGs (--no-dag)"), std::string::npos) << b.err;
+  EXPECT_EQ(run(q(scene) + " --no-dag").code, 1);  // needs --convert
+}
+
 TEST_F(ConvertBench, BadInputAndUsage) {
   const FullRun missing = run_full(kTool, q((dir / "no-such-scene.glb").string()) + " --convert --reps 1", dir);
   EXPECT_EQ(missing.code, 2);

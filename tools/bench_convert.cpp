@@ -114,6 +114,7 @@ ConvertRun convert_once(const ConvertBenchConfig& cfg, const std::string& output
   cs.zstd_level = cfg.zstd_level;
   cs.zstd_raw_literals = cfg.zstd_raw_literals;
   cs.zstd_leaf_min_match = cfg.zstd_leaf_min_match;
+  cs.dag = cfg.dag;
   ConvertHooks hooks;
   hooks.stage = [&](const std::string& name, bool counts) { progress.stage(label + name, counts); };
   hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
@@ -233,6 +234,7 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"leaf_width", leaf_width},
                 {"zstd_level", cfg.zstd_level},
                 {"zstd_raw_literals", cfg.zstd_raw_literals}, {"zstd_leaf_min_match", cfg.zstd_leaf_min_match},
+                {"dag", cfg.dag},
                 {"sections", sections},
                 {"sections_stored_bytes", sections_stored},
                 {"container_bytes", container},
@@ -265,9 +267,9 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   FILE* o = cfg.json ? stderr : stdout;
   for (const std::string& w : warnings) std::fprintf(o, "warning: %s: %s\n", cfg.scene_path.c_str(), w.c_str());
   std::fprintf(o, "convert %s -> %s%s\n", cfg.scene_path.c_str(), output.c_str(), keep_output ? "" : " (temporary, deleted)");
-  std::fprintf(o, "cpu %s; %d of %d hardware threads; W=%d B=%d, zstd %d, chunk target %" PRIu64 "%s; best of %d after a warm-up\n",
+  std::fprintf(o, "cpu %s; %d of %d hardware threads; W=%d B=%d, zstd %d, chunk target %" PRIu64 "%s%s; best of %d after a warm-up\n",
                cpu.c_str(), threads, hw, cfg.bvh_width, leaf_width, cfg.zstd_level, c.chunk_target,
-               cfg.chunk_target ? "" : " (derived)", cfg.reps);
+               cfg.chunk_target ? "" : " (derived)", cfg.dag ? "" : ", no culling DAGs (--no-dag)", cfg.reps);
   std::fprintf(o, "triangles %" PRIu64 " unique, %" PRIu64 " instanced (%" PRIu64 " instances); %" PRIu64
                " chunks (%zu batching points, %zu mesh segments)\n",
                c.unique, c.instanced, c.instances, c.report.chunks, c.points, c.segments);

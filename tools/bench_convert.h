@@ -20,6 +20,7 @@ struct ConvertBenchConfig {
   bool zstd_raw_literals = true;  // --zstd-huffman-literals: false
   int zstd_leaf_min_match = kDefaultLeafMinMatch;  // --zstd-leaf-min-match
   uint64_t chunk_target = 0;  // 0 = derived from the scene
+  bool dag = true;            // --no-dag: false (no culling DAGs, as rtpack-convert --no-dag)
   int threads = 0;            // 0 = all hardware threads
   int reps = 3;               // best of reps after one warm-up (convert and Embree alike)
   bool json = false;

@@ -429,6 +429,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}))->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
       ->check(rtp::tools::chunk_target_range())->needs(convert_flag);
+  app.add_flag("--no-dag{false}", conv.dag,
+               "--convert: store no culling DAGs (as rtpack-convert --no-dag): beside a default run, what the DAGs cost")
+      ->needs(convert_flag);
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
     convert_flag->excludes(app.get_option(trace_only));
   convert_flag->excludes(build_stats);
