@@ -63,6 +63,8 @@ enum class SectionType : uint32_t {
   kDagLeaves = 24,      // uint64[]         DAG pool leaf masks (kind 7)
   // 5.0: the instance table holds where each record is, not a copy of it, SPEC §2.5:
   kInstanceRefs = 25,   // InstanceRef[]    per scene instance (instance table, kind 4)
+  // 7.0: instance boxes as the culling proxy of instance-heavy points, SPEC §4.5 and formats/dag.h:
+  kCullNodes = 26,      // CullNode<W>[]    DAG pool chunk (kind 7): those points' instance BVHs, 8-bit boxes
 };
 
 inline constexpr uint32_t kMeshInstanced = 1, kMeshNormals = 2, kMeshUvs = 4;  // MeshInfo::flags

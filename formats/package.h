@@ -7,7 +7,7 @@
 namespace rtp::fmt {
 
 inline constexpr char kMagic[8] = {'R', 'T', 'P', 'A', 'C', 'K', '\r', '\n'};
-inline constexpr uint32_t kVersionMajor = 6;  // a reader refuses another major version
+inline constexpr uint32_t kVersionMajor = 7;  // a reader refuses another major version
 inline constexpr uint32_t kVersionMinor = 0;  // a reader accepts any minor version of its major
 // History: 1.0 container; 1.1 attribute chunks (kinds 18, 19) and header flags; 2.0 occlusion-culling
 // DAGs (kind 7, per-point grids) and the header flag kFlagDag; 3.0 DAG leaves used once stored inline

@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - depends on the machine
 
 # ---- constants (formats/package.h, chunk.h, dag.h) -------------------------------------------------
 MAGIC = b"RTPACK\r\n"
-VERSION_MAJOR, VERSION_MINOR = 6, 0
+VERSION_MAJOR, VERSION_MINOR = 7, 0
 ALIGNMENT = 4096
 CHUNK_MAGIC = 0x48435452  # "RTCH"
 MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
@@ -79,6 +79,7 @@ COMPRESSION_NONE, COMPRESSION_ZSTD = 0, 1
 CHILD_EMPTY, LEAF_BIT = 0xFFFFFFFF, 0x80000000  # ChildRef (SPEC §2.1)
 PIECE_BIT, NO_ATTRIBUTE, NO_SEGMENT = 0x80000000, 0xFFFFFFFF, 0xFFFFFFFF
 DAG_EMPTY, DAG_FULL = 0xFFFFFFFE, 0xFFFFFFFF
+DAG_BOXES = 0  # DagGrid.resolution of a point culled by its instance boxes (7.0, section SEC_CULL_NODES)
 
 (KIND_METADATA, KIND_TOP_LEVEL_BVH, KIND_BATCHING_POINTS, KIND_INSTANCES, KIND_MESHES, KIND_SOURCE_MAP,
  KIND_DAG_POOL) = range(1, 8)
@@ -91,7 +92,7 @@ RESIDENT_KINDS = range(1, 8)
 (SEC_NODES, SEC_BLOCKS, SEC_MESH_ENTRIES, SEC_INSTANCE_IDS, SEC_INSTANCES, SEC_GLOBAL_IDS, SEC_MESH_SLOTS,
  SEC_TOP_NODES, SEC_POINT_DESCS, SEC_SEGMENT_REFS, SEC_MESH_TABLE, SEC_SOURCE_PRIMS, SEC_SOURCE_TRIS, SEC_JSON,
  SEC_INSTANCE_NODES, SEC_INSTANCE_BVH, SEC_ATTR_ENTRIES, SEC_ATTR_TRIANGLES, SEC_ATTR_NORMALS, SEC_ATTR_UVS,
- SEC_ATTR_TRI_IDS, SEC_POINT_GRIDS, SEC_DAG_NODES, SEC_DAG_LEAVES, SEC_INSTANCE_REFS) = range(1, 26)
+ SEC_ATTR_TRI_IDS, SEC_POINT_GRIDS, SEC_DAG_NODES, SEC_DAG_LEAVES, SEC_INSTANCE_REFS, SEC_CULL_NODES) = range(1, 27)
 NO_POINT = 0xFFFFFFFF  # InstanceRef.point of an instance no batching point holds
 
 
@@ -151,6 +152,12 @@ def wide_node(w):
     return _dt([("lo", "<f4", (3, w)), ("hi", "<f4", (3, w)), ("child", "<u4", (w,)), ("order", "u1", (8, w))])
 
 
+def cull_node(w):
+    """SPEC §4.5 CullNode<W> (24 + 10·W bytes, 7.0): a box plane is origin + q * scale in double."""
+    return _dt([("origin", "<f4", (3,)), ("scale", "<f4", (3,)), ("lo", "u1", (3, w)), ("hi", "u1", (3, w)),
+                ("child", "<u4", (w,))])
+
+
 def leaf_block(b):
     """SPEC §2.3 LeafBlock<B> (40·B bytes)."""
     return _dt([("v0", "<f4", (3, b)), ("v1", "<f4", (3, b)), ("v2", "<f4", (3, b)), ("prim", "<u4", (b,))])
@@ -177,6 +184,8 @@ def _check_layouts():
     assert off(DAG_GRID, "ray_rel") == 28
     assert [wide_node(w).itemsize for w in (4, 8, 16)] == [144, 288, 576]
     assert off(wide_node(8), "hi") == 96 and off(wide_node(8), "child") == 192 and off(wide_node(8), "order") == 224
+    assert [cull_node(w).itemsize for w in (4, 8, 16)] == [64, 104, 184]
+    assert off(cull_node(8), "lo") == 24 and off(cull_node(8), "hi") == 48 and off(cull_node(8), "child") == 72
     assert [leaf_block(b).itemsize for b in (4, 8, 16)] == [160, 320, 640]
     assert off(leaf_block(8), "v1") == 96 and off(leaf_block(8), "prim") == 288
 
@@ -195,7 +204,7 @@ def section_dtype(sec_type, w, b):
             SEC_ATTR_ENTRIES: ATTRIBUTE_ENTRY, SEC_ATTR_TRIANGLES: np.dtype(("<u4", (3,))),
             SEC_ATTR_NORMALS: np.dtype(("<f4", (3,))), SEC_ATTR_UVS: np.dtype(("<f4", (2,))), SEC_ATTR_TRI_IDS: u4,
             SEC_POINT_GRIDS: DAG_GRID, SEC_DAG_NODES: u4, SEC_DAG_LEAVES: np.dtype("<u8"),
-            SEC_INSTANCE_REFS: INSTANCE_REF}.get(int(sec_type))
+            SEC_INSTANCE_REFS: INSTANCE_REF, SEC_CULL_NODES: cull_node(w)}.get(int(sec_type))
 
 
 # SPEC §4.5 pool: an inner node at word offset `off` of section 23 (words) -- word 0 = child mask

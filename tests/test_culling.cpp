@@ -33,6 +33,7 @@
 #include "package/package.h"
 #include "trace/package_tracer.h"
 #include "package/write_package.h"
+#include "reader/chunk_io.h"
 #include "scene/import.h"
 
 namespace rtp::test {
@@ -469,6 +470,34 @@ TEST_F(Culling, NoFalseCullsOnFlatTinyAndForcedResolutions) {
       EXPECT_GT(t.culled_pairs, 0u);
     }
   }
+}
+
+// TESTING.md item 8 for the instance-box proxies (SPEC §4.5, 7.0): forest-small cut into about 31
+// points holds points of 64 instances or more (culled by their 8-bit instance boxes) beside smaller
+// ones (voxels); neither kind may cull a hit, and the box points must cull.
+TEST_F(Culling, InstanceBoxesNeverCullAHit) {
+  const SceneCase sc = sample_cases()[8];
+  ASSERT_STREQ(sc.name, "ForestSmall");
+  const Converted c = convert(sc.path, dir, {}, 31);
+  EXPECT_GT(c.report.box_points, 0u);
+  EXPECT_FALSE(c.report.dag_resolutions.empty()) << "the cut should leave some points with voxels";
+  uint64_t grid_count = 0;
+  const AlignedBytes desc = c.reader->read(size_t(c.reader->find(fmt::ChunkKind::kBatchingPoints, 0)));
+  const ChunkView dv(desc.data(), desc.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), "descriptors");
+  const fmt::DagGrid* grids = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, grid_count);
+  ASSERT_EQ(grid_count, c.tracer->batching_points());
+  uint64_t boxes = 0;
+  for (uint64_t p = 0; p < grid_count; ++p) boxes += grids[p].resolution == fmt::kDagBoxes;
+  EXPECT_EQ(boxes, c.report.box_points);
+  const std::vector<fmt::Ray> rays = scene_rays(c, scaled(6000), scaled(6000), 23);
+  const CullTally t = check_culling(c, rays);
+  print("ForestSmall, boxes and voxels", t);
+  expect_sound("ForestSmall, boxes and voxels", t);
+  uint64_t box_culls = 0;
+  for (size_t i = 0; i < rays.size(); i += 7)
+    for (uint64_t p = 0; p < grid_count; ++p)
+      if (grids[p].resolution == fmt::kDagBoxes) box_culls += c.tracer->test_point_dag(p, rays[i]).culled;
+  EXPECT_GT(box_culls, 0u) << "the instance boxes never cull anything";
 }
 
 // TESTING.md item 8, the teeth: thin (6-separating, no margin) voxelization leaves gaps, and the same

@@ -356,9 +356,9 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
   }
   EXPECT_EQ(caught, 1000);
   // Packages of earlier major versions (1.x: no culling DAGs; 2.x: no inline DAG leaves; 3.x: float 3x4
-  // instance transforms; 4.x: an instance table of whole records; 5.x: 112-byte records) are refused with a
-  // version message.
-  for (const char major : {char(1), char(2), char(3), char(4), char(5)}) {
+  // instance transforms; 4.x: an instance table of whole records; 5.x: 112-byte records; 6.x: no instance
+  // boxes as culling proxies) are refused with a version message.
+  for (const char major : {char(1), char(2), char(3), char(4), char(5), char(6)}) {
     std::string v = bytes;
     v[8] = major;
     std::string expected = "package version ";

@@ -104,9 +104,12 @@ CLI::Option* add_dag_options(CLI::App& app, DagBenchConfig& cfg) {
     }
     return std::string("must be a power of two from 4 to 1024");
   };
-  app.add_option("--resolutions", cfg.resolutions, "--dag sweep: grid resolutions (default 32,64,128,256,512)")
+  const auto pow2_or_0 = [pow2](const std::string& s) { return s == "0" ? std::string() : pow2(s); };
+  app.add_option("--resolutions", cfg.resolutions,
+                 "--dag sweep: grid resolutions (default 32,64,128,256,512); 0: the converter's default (a resolution "
+                 "per point, instance boxes for points of 64 instances or more)")
       ->delimiter(',')
-      ->check(pow2)
+      ->check(pow2_or_0)
       ->needs(flag);
   app.add_option("--proxy-resolution", cfg.proxy_resolution, "--dag proxy: grid resolution (default 128)")
       ->check(pow2)

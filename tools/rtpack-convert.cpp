@@ -207,7 +207,8 @@ int main(int argc, char** argv) {
       nlohmann::json hist = nlohmann::json::object();
       for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
       j["dag"] = {{"pool_bytes", rep.dag_pool_bytes}, {"separate_bytes", rep.dag_separate_bytes},
-                  {"set_cells", rep.dag_set_cells}, {"resolutions", hist}, {"voxelize_seconds", rep.voxelize_seconds}};
+                  {"set_cells", rep.dag_set_cells}, {"resolutions", hist}, {"voxelize_seconds", rep.voxelize_seconds},
+                  {"box_points", rep.box_points}, {"box_node_bytes", rep.box_node_bytes}};
     }
     j.update(rtp::tools::json_stamp("rtpack-convert"));
     if (json) {
@@ -237,6 +238,9 @@ int main(int argc, char** argv) {
       if (!no_dag) {
         std::string res;
         for (const auto& [r, n] : rep.dag_resolutions) res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
+        if (rep.box_points)
+          res += (res.empty() ? "" : ", ") + std::to_string(rep.box_points) + " by instance boxes (" +
+                 human(double(rep.box_node_bytes)) + " of nodes)";
         std::printf("  culling DAGs   %s in one pool (%s if built apart), %llu set cells; %s; voxelized in %.2f s\n",
                     human(double(rep.dag_pool_bytes)).c_str(), human(double(rep.dag_separate_bytes)).c_str(),
                     (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);

@@ -5,6 +5,7 @@
 
 #include <cfloat>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <optional>
@@ -142,6 +143,11 @@ void read_resident(Ctx& c) {
         case ChunkKind::kDagPool:
           res.dag_words = v.copy<uint32_t>(SectionType::kDagNodes);
           res.dag_leaves = v.copy<uint64_t>(SectionType::kDagLeaves);
+          if (const size_t nb = fmt::cull_node_bytes(c.r.header().bvh_width);
+              const void* cn = v.get_raw(SectionType::kCullNodes, nb, res.cull_count, false)) {
+            res.cull_nodes.resize(res.cull_count * nb);
+            std::memcpy(res.cull_nodes.data(), cn, res.cull_nodes.size());
+          }
           res.dag_ok = true;
           break;
         case ChunkKind::kInstances:

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/aligned.h"
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
 #include "formats/dag.h"
@@ -153,6 +154,8 @@ struct Resident {
   std::vector<fmt::DagGrid> grids;
   std::vector<uint32_t> dag_words;
   std::vector<uint64_t> dag_leaves;
+  AlignedBytes cull_nodes;  // 7.0: section kCullNodes of the DAG pool chunk, CullNode<W>[cull_count]
+  uint64_t cull_count = 0;
   std::string dag_label;
 };
 

@@ -110,12 +110,28 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems&
   const uint64_t pool_bytes = res.dag_ok ? res.dag_words.size() * 4 + res.dag_leaves.size() * 8 : 0;
   nlohmann::json j = {{"present", res.dag_present || res.grids_present}, {"pool_bytes", pool_bytes},
                       {"node_words", res.dag_words.size()}, {"leaves", res.dag_leaves.size()}};
-  const voxel::DagView view{res.dag_words.data(), res.dag_words.size(), res.dag_leaves.data(), res.dag_leaves.size()};
+  voxel::DagView view{res.dag_words.data(), res.dag_words.size(), res.dag_leaves.data(), res.dag_leaves.size()};
+  if (res.cull_count) view.cull = res.cull_nodes.data(), view.cull_count = res.cull_count, view.cull_width = r.header().bvh_width;
   CellCounter counter(view);
   std::map<uint32_t, uint64_t> resolutions;
-  uint64_t separate = 0, cells = 0, total_cells = 0, sound = 0, malformed = 0, unchecked = 0, empty = 0, full = 0;
+  uint64_t separate = 0, cells = 0, total_cells = 0, sound = 0, malformed = 0, unchecked = 0, empty = 0, full = 0, boxes = 0;
   for (size_t p = 0; p < res.grids.size(); ++p) {
     const fmt::DagGrid& g = res.grids[p];
+    if (g.resolution == fmt::kDagBoxes) {  // 7.0: the point's instance boxes, no voxels
+      ++boxes;
+      if (!res.dag_ok) {
+        ++unchecked;
+        continue;
+      }
+      const std::string bad = voxel::check_dags(&g, 1, view);
+      if (!bad.empty()) {
+        ++malformed;
+        problems.add(res.dag_label + ": batching point " + str(p) + "'s instance boxes: " + bad.substr(bad.find(": ") + 2));
+        continue;
+      }
+      ++sound;
+      continue;
+    }
     ++resolutions[g.resolution];
     empty += g.root == fmt::kDagEmpty;
     full += g.root == fmt::kDagFull;
@@ -146,10 +162,19 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems&
     cells += counter.grid(g);
     total_cells += uint64_t(g.resolution) * g.resolution * g.resolution;
   }
+  if (boxes && res.dag_ok && malformed == 0) {  // each alone was sound: no node may serve two of them
+    const std::string e = voxel::check_dags(res.grids.data(), res.grids.size(), view);
+    if (!e.empty()) {
+      ++malformed;
+      problems.add(res.dag_label + ": " + e);
+    }
+  }
   nlohmann::json hist = nlohmann::json::object();  // {"128": points, ...}, as rtpack-convert --json prints it
   for (const auto& [resolution, points] : resolutions) hist[str(resolution)] = points;
   const uint64_t points = res.grids.size();
   j["grids"] = points;
+  j["box_points"] = boxes;
+  j["box_node_bytes"] = res.cull_count * fmt::cull_node_bytes(r.header().bvh_width);
   j["grid_bytes"] = points * sizeof(fmt::DagGrid);
   j["resolutions"] = hist;
   j["nodes"] = counter.nodes();

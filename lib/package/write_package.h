@@ -30,6 +30,9 @@ inline constexpr int kDefaultZstdLevel = 1;
 // 1.840 at 1311 MB/s decompressed, 6 → 1.634 at 1640 MB/s, 7 → 1.585 at 1941 MB/s; out of core at a
 // 10 % budget that is the load stage's main cost (docs/trace/budget.md, docs/package/zstd.md).
 inline constexpr int kDefaultLeafMinMatch = 7;
+// Batching points of instances only, at least this many, cull by their instance boxes instead of voxels
+// (formats/dag.h kDagBoxes; write_package.cpp says why).
+inline constexpr size_t kBoxProxyMinInstances = 64;
 
 struct ConvertOptions {
   int width = 8;       // W: 4, 8 or 16
@@ -67,7 +70,8 @@ struct ConvertReport {
   // Culling DAGs (0 without): pool bytes, the sum of each point's DAG built alone, set cells, and the
   // resolution of every batching point.
   uint64_t dag_pool_bytes = 0, dag_separate_bytes = 0, dag_set_cells = 0;
-  std::map<uint32_t, uint64_t> dag_resolutions;  // resolution -> batching points
+  std::map<uint32_t, uint64_t> dag_resolutions;  // resolution -> batching points culled by voxels
+  uint64_t box_points = 0, box_node_bytes = 0;   // points culled by their instance boxes (7.0), their nodes' raw bytes
   double voxelize_seconds = 0;                   // summed over threads
 };
 

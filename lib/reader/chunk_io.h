@@ -55,17 +55,21 @@ class ChunkView {
   bool has(fmt::SectionType type) const { return find(type) != nullptr; }
   template <class T>
   const T* get(fmt::SectionType type, uint64_t& count, bool required = true) const {
+    return static_cast<const T*>(get_raw(type, sizeof(T), count, required));
+  }
+  // The same for elements whose type is chosen at run time (e.g. WideNode<W> of the header's W).
+  const void* get_raw(fmt::SectionType type, size_t elem_size, uint64_t& count, bool required = true) const {
     const fmt::SectionEntry* e = find(type);
     if (!e) {
       if (required) fail_invalid(label_ + ": missing section " + std::to_string(uint32_t(type)));
       count = 0;
       return nullptr;
     }
-    if (e->elem_size != sizeof(T))
+    if (e->elem_size != elem_size)
       fail_invalid(label_ + ": section " + std::to_string(uint32_t(type)) + " has elements of " + std::to_string(e->elem_size) +
-                   " bytes, expected " + std::to_string(sizeof(T)));
+                   " bytes, expected " + std::to_string(elem_size));
     count = e->count;
-    return reinterpret_cast<const T*>(bytes_ + e->offset);
+    return bytes_ + e->offset;
   }
   template <class T>
   std::vector<T> copy(fmt::SectionType type, bool required = true) const {

@@ -11,6 +11,8 @@
 #include <unordered_set>
 #include <vector>
 
+#include "formats/bvh_layout.h"
+#include "formats/chunk.h"
 #include "trace/dag_trace.h"
 
 namespace rtp::voxel {
@@ -36,7 +38,46 @@ bool resolution_ok(uint32_t r) {
 
 namespace {
 
-std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8_t>& seen) {
+// SPEC §4.5 (7.0): an instance-box grid's nodes. `seen` is shared by the grids of one pool: no node
+// may be reached twice (so a walk visits each node at most once), inner children only after their parent.
+template <int W>
+std::string check_boxes(const fmt::DagGrid& g, const DagView& v, std::vector<uint8_t>& seen) {
+  const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
+  if (g.root >= v.cull_count) return "instance boxes: first node " + std::to_string(g.root) + " out of range (" + std::to_string(v.cull_count) + " nodes)";
+  if (seen.size() != v.cull_count) seen.assign(v.cull_count, 0);
+  std::vector<uint64_t> pending{g.root};
+  while (!pending.empty()) {
+    const uint64_t at = pending.back();
+    pending.pop_back();
+    if (seen[at]) return "instance boxes: node " + std::to_string(at) + " reached twice";
+    seen[at] = 1;
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(nodes[at].origin[k]) || !(nodes[at].scale[k] >= 0) || !std::isfinite(nodes[at].scale[k]))
+        return "instance boxes: node " + std::to_string(at) + " has a non-finite origin or a negative or non-finite scale";
+    for (int l = 0; l < W; ++l) {
+      const uint32_t c = nodes[at].child[l];
+      if (fmt::ChildRef::is_empty(c) || fmt::ChildRef::is_leaf(c)) continue;
+      const uint64_t child = uint64_t(g.root) + c;
+      if (child <= at || child >= v.cull_count)
+        return "instance boxes: node " + std::to_string(at) + " lane " + std::to_string(l) + " references node " +
+               std::to_string(child) + " (not after it, or out of range)";
+      pending.push_back(child);
+    }
+  }
+  return "";
+}
+
+std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8_t>& seen, std::vector<uint8_t>& box_seen) {
+  if (g.resolution == fmt::kDagBoxes) {
+    if (g.origin[0] != 0 || g.origin[1] != 0 || g.origin[2] != 0 || g.cell != 0 || g.margin != 0 || g.ray_rel != 0)
+      return "instance boxes: origin, cell, margin and ray_rel must be 0";
+    switch (v.cull ? v.cull_width : 0) {
+      case 4: return check_boxes<4>(g, v, box_seen);
+      case 8: return check_boxes<8>(g, v, box_seen);
+      case 16: return check_boxes<16>(g, v, box_seen);
+      default: return "instance boxes but no instance-box nodes (section " + std::to_string(uint32_t(fmt::SectionType::kCullNodes)) + ")";
+    }
+  }
   if (!resolution_ok(g.resolution)) return "resolution " + std::to_string(g.resolution) + " is not a power of two in [4, 1024]";
   if (!(std::isfinite(g.cell) && g.cell > 0)) return "cell size is not a positive finite number";
   for (int k = 0; k < 3; ++k)
@@ -92,20 +133,21 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
 }  // namespace
 
 std::string check_dag(const fmt::DagGrid& g, const DagView& v) {
-  std::vector<uint8_t> seen;
-  return check_one(g, v, seen);
+  std::vector<uint8_t> seen, box_seen;
+  return check_one(g, v, seen, box_seen);
 }
 
 std::string check_dags(const fmt::DagGrid* grids, uint64_t n, const DagView& v) {
-  std::vector<uint8_t> seen;
+  std::vector<uint8_t> seen, box_seen;
   for (uint64_t p = 0; p < n; ++p) {
-    const std::string e = check_one(grids[p], v, seen);
+    const std::string e = check_one(grids[p], v, seen, box_seen);
     if (!e.empty()) return "batching point " + std::to_string(p) + ": " + e;
   }
   return "";
 }
 
 uint64_t dag_reachable_bytes(const fmt::DagGrid& g, const DagView& v) {
+  if (g.resolution == fmt::kDagBoxes) return 0;  // no DAG: instance boxes
   if (g.root == fmt::kDagEmpty || g.root == fmt::kDagFull) return 0;
   const int levels = grid_levels(g.resolution);
   if (levels == 0) return 8;
@@ -325,7 +367,60 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   return out;
 }
 
+namespace {
+
+// SPEC §4.5 (7.0): is any instance box of the grid met within the ray's interval? In double, each box
+// grown by 1e-5 of its coordinates' and the origin's magnitudes and the interval by 1e-5 of itself (the
+// float kernels' rounding is ~1e-7 of those): every box the point's instance walk may hit is hit here.
+// A NaN anywhere counts as a hit, and so does a tree deeper than the fixed stack (no allocation).
+template <int W>
+bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const fmt::Ray& ray) {
+  const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
+  const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+  const double tn = double(ray.tnear) - 1e-5 * std::fabs(double(ray.tnear)), tf = double(ray.tfar) + 1e-5 * std::fabs(double(ray.tfar));
+  constexpr int kStack = 64;
+  uint64_t stack[kStack];
+  int sp = 0;
+  stack[sp++] = g.root;
+  while (sp > 0) {
+    const fmt::CullNode<W>& n = nodes[stack[--sp]];
+    for (int l = 0; l < W; ++l) {
+      const uint32_t c = n.child[l];
+      if (fmt::ChildRef::is_empty(c)) continue;
+      double t0 = tn, t1 = tf;
+      bool miss = false;
+      for (int k = 0; k < 3; ++k) {
+        const double lo = fmt::cull_plane(n.origin[k], n.scale[k], n.lo[k][l]), hi = fmt::cull_plane(n.origin[k], n.scale[k], n.hi[k][l]);
+        const double pad = 1e-5 * (std::fabs(lo) + std::fabs(hi) + std::fabs(o[k]));
+        if (d[k] == 0) {
+          miss |= o[k] < lo - pad || o[k] > hi + pad;
+          continue;
+        }
+        double a = (lo - pad - o[k]) / d[k], b = (hi + pad - o[k]) / d[k];
+        if (a > b) std::swap(a, b);
+        if (a > t0) t0 = a;
+        if (b < t1) t1 = b;
+      }
+      if (miss || t0 > t1) continue;  // false for NaN: a hit
+      if (fmt::ChildRef::is_leaf(c)) return true;
+      if (sp == kStack) return true;
+      stack[sp++] = uint64_t(g.root) + c;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray) {
+  if (grid.resolution == fmt::kDagBoxes) {
+    switch (pool.cull ? pool.cull_width : 0) {
+      case 4: return any_instance_box<4>(grid, pool, ray);
+      case 8: return any_instance_box<8>(grid, pool, ray);
+      case 16: return any_instance_box<16>(grid, pool, ray);
+      default: return true;  // check_dags refuses this
+    }
+  }
   const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
   const DagHit h = dag_first_entry(grid, pool, org, dir, ray.tnear, ray.tfar);
   if (h.culled) return false;

@@ -16,10 +16,15 @@ struct DagView {
   uint64_t word_count = 0;
   const uint64_t* leaves = nullptr;
   uint64_t leaf_count = 0;
+  // Version 7.0: the instance-box proxies' nodes (section kCullNodes), fmt::WideNode<cull_width>[].
+  const void* cull = nullptr;
+  uint64_t cull_count = 0;
+  uint32_t cull_width = 0;  // the package's BVH width W
 };
 
 // Structural check of one grid's DAG: resolution, cell, every reference in range, node sizes, no
-// empty node or leaf. Returns "" when sound, else what is wrong. Cost: O(nodes reachable).
+// empty node or leaf; for an instance-box grid (fmt::kDagBoxes): every inner child after its parent and
+// in range, no node reached twice. Returns "" when sound, else what is wrong. Cost: O(nodes reachable).
 std::string check_dag(const fmt::DagGrid& grid, const DagView& pool);
 // The same for every grid of a pool at once (nodes shared by several grids are checked once):
 // "" or "batching point N: <problem>".
@@ -44,6 +49,8 @@ DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const doub
 // Molenaar 2019 §4.2, as both package tracers apply it before walking a batching point's BVH: false
 // when the ray is culled; otherwise ray.tnear is raised to the entry distance rounded down to float
 // (no hit of the point's geometry lies before it).
+// An instance-box grid culls the ray when it meets no instance box within [tnear, tfar] (boxes grown
+// by a relative 1e-5, so every box the float kernels may hit counts) and leaves tnear as it is.
 bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray);
 
 }  // namespace rtp::voxel

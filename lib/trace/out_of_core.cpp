@@ -120,6 +120,8 @@ Resident read_resident(const PackageReader& r) {
     ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), chunk_label(toc[size_t(pi)], size_t(pi)));
     s.dag.words = v.get<uint32_t>(fmt::SectionType::kDagNodes, s.dag.word_count);
     s.dag.leaves = v.get<uint64_t>(fmt::SectionType::kDagLeaves, s.dag.leaf_count);
+    s.dag.cull_width = r.header().bvh_width;
+    s.dag.cull = v.get_raw(fmt::SectionType::kCullNodes, fmt::cull_node_bytes(s.dag.cull_width), s.dag.cull_count, false);
     const std::string e = voxel::check_dags(s.grids, n_grids, s.dag);
     if (!e.empty()) fail_invalid(v.label() + ": culling DAG of " + e);
   }

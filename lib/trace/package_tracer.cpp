@@ -150,6 +150,10 @@ class Tracer final : public PackageTracer {
   voxel::DagHit test_point_dag(size_t p, const fmt::Ray& ray) const override {
     if (!grids_ || p >= points_.size()) return {false, double(ray.tnear)};
     const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    if (grids_[p].resolution == fmt::kDagBoxes) {  // instance boxes: culled or not, tnear as it is
+      fmt::Ray r = ray;
+      return voxel::dag_enter(grids_[p], dag_, r) ? voxel::DagHit{false, double(ray.tnear)} : voxel::DagHit{};
+    }
     return voxel::dag_first_entry(grids_[p], dag_, org, dir, ray.tnear, ray.tfar);
   }
 
@@ -200,6 +204,8 @@ class Tracer final : public PackageTracer {
     ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kDagPool), labels_.back());
     dag_.words = v.get<uint32_t>(fmt::SectionType::kDagNodes, dag_.word_count);
     dag_.leaves = v.get<uint64_t>(fmt::SectionType::kDagLeaves, dag_.leaf_count);
+    dag_.cull = v.get<fmt::CullNode<W>>(fmt::SectionType::kCullNodes, dag_.cull_count, false);
+    dag_.cull_width = uint32_t(W);
     const std::string e = checked([&] { return voxel::check_dags(grids_, n_grids, dag_); });
     if (!e.empty()) fail_invalid(labels_.back() + ": culling DAG of " + e);
   }

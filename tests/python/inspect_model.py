@@ -137,6 +137,8 @@ def dag_stats(grids, words, leaves):
     out = {"set_cells": 0, "cells": 0, "separate_bytes": 0, "empty_roots": 0, "full_roots": 0, "resolutions": {}}
     for g in grids:
         r, root = int(g["resolution"]), int(g["root"])
+        if r == rtpack.DAG_BOXES:  # 7.0: instance boxes, no voxels
+            continue
         levels = (r // 4).bit_length() - 1  # log2(R / 4)
         out["resolutions"][str(r)] = out["resolutions"].get(str(r), 0) + 1
         out["cells"] += r ** 3

@@ -60,6 +60,9 @@ VARIANTS = [
     ("helmet-small-points", "khronos/FlightHelmet/glTF/FlightHelmet.gltf",
      ["--chunk-target", "3000", "--attributes", "normal,uv", "--bvh-build", "split"]),
     ("forest-small-points", "generated/forest-small.glb", ["--chunk-target", "200000", "--no-dag"]),
+    # Points of 64 instances or more cull by their instance boxes (7.0), the others by voxels.
+    ("forest-small-boxes", "generated/forest-small.glb", ["--chunk-target", "300000"]),
+    ("forest-small-boxes-w4", "generated/forest-small.glb", ["--chunk-target", "300000", "--bvh-width", "4"]),
 ]
 TOOL_TIMEOUT = 120
 
@@ -352,6 +355,19 @@ class ReaderVsInspect(unittest.TestCase):
         st = dag_stats(grids, words, leaves)
         for k in ("resolutions", "empty_roots", "full_roots", "nodes", "set_cells", "cells", "separate_bytes"):
             self.assertEqual(g[k], st[k], k)
+        # Instance boxes (7.0): each box point's nodes are its instance BVH's, boxes rounded outward.
+        cull, boxes = pool.get(rtpack.SEC_CULL_NODES, required=False), grids["resolution"] == rtpack.DAG_BOXES
+        self.assertEqual(g["box_points"], int(boxes.sum()))
+        self.assertEqual(g["box_node_bytes"], 0 if cull is None else cull.nbytes)
+        for p in np.flatnonzero(boxes):
+            nodes = d.chunks[d.pkg.find(rtpack.KIND_BATCHING_POINT, int(p))].get(rtpack.SEC_INSTANCE_NODES)
+            q = cull[int(grids["root"][p]):int(grids["root"][p]) + len(nodes)]
+            self.assertEqual(len(q), len(nodes))
+            np.testing.assert_array_equal(q["child"], nodes["child"])
+            filled = (nodes["child"] != rtpack.CHILD_EMPTY)[:, None, :]
+            org, scale = q["origin"].astype("f8")[:, :, None], q["scale"].astype("f8")[:, :, None]
+            self.assertTrue(np.all(~filled | (org + q["lo"] * scale <= nodes["lo"])), f"point {p}: a box minimum rounded up")
+            self.assertTrue(np.all(~filled | (org + q["hi"] * scale >= nodes["hi"])), f"point {p}: a box maximum rounded down")
         self.assertEqual(g["unreachable_bytes"], g["pool_bytes"] - min(g["pool_bytes"], st["reached_bytes"]))
         self.close(g["sharing"], st["separate_bytes"] / g["pool_bytes"] if g["pool_bytes"] else 1.0, "sharing")
         self.close(g["bytes_per_point"], g["pool_bytes"] / len(grids), "bytes_per_point")
