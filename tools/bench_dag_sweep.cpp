@@ -152,7 +152,9 @@ int64_t run_sweep(const DagBenchConfig& cfg, int threads, std::vector<SweepRecor
                       s.mismatched ? " HITS DIFFER" : "");
         line += buf;
       }
-      note("sweep %s %u^3: pool %" PRIu64 " B, convert %.2f s%s [%.1f s]", base_name(path).c_str(), res, rep.dag_pool_bytes,
+      const std::string at = res ? std::to_string(res) + "^3" : "default (voxels; instance boxes for " +
+                                                                    std::to_string(rep.box_points) + " points)";
+      note("sweep %s %s: pool %" PRIu64 " B, convert %.2f s%s [%.1f s]", base_name(path).c_str(), at.c_str(), rep.dag_pool_bytes,
            convert_s, line.c_str(), since(t_res));
     }
   }

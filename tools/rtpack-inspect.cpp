@@ -80,6 +80,9 @@ void print_dag(const json& d) {
   for (const auto& [r, n] : by_res) res += (res.empty() ? "" : ", ") + group(n) + " at " + std::to_string(r) + "^3";
   std::printf("  resolutions   %s (%s grid%s, %s in the descriptors chunk)\n", res.empty() ? "-" : res.c_str(), group(points).c_str(),
               points == 1 ? "" : "s", human(double(u64(d["grid_bytes"]))).c_str());
+  if (const uint64_t boxes = d.value("box_points", uint64_t(0)))
+    std::printf("  instance boxes %s point%s culled by their instance BVH with 8-bit boxes (%s of nodes)\n", group(boxes).c_str(),
+                boxes == 1 ? "" : "s", human(double(d.value("box_node_bytes", uint64_t(0)))).c_str());
   const uint64_t sep = u64(d["separate_bytes"]);
   std::printf("  sharing       %s built alone per point -> %s shared pool: %sx", human(double(sep)).c_str(), human(double(pool)).c_str(),
               num(d["sharing"], "%.2f").c_str());
