@@ -376,8 +376,8 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   std::vector<fmt::CullNode<W>> cull_nodes;  // the instance-box proxies' nodes, point after point
   // Instance boxes instead of voxels (SPEC §4.5, 7.0) for points of instances only, at least this many:
   // there each instance spans a few cells of the point's grid, and its box culls more than its voxels
-  // (forest-1m, 244 instances a point: random rays 57.6 % of point visits culled against 41.1 % at
-  // 128^3, bounce rays 8.7 against 5.4 %) for no voxelization (35 % of that convert); with a few large
+  // (forest-1m, 244 instances a point: random rays 55.6 % of point visits culled against 41.1 % at
+  // 128^3, bounce rays 8.0 against 5.4 %) for no voxelization (35 % of that convert); with a few large
   // instances (forest-2k, 21) the voxels cull more. An explicit --dag-resolution keeps voxels everywhere.
   auto box_proxy = [&](const BatchingPoint& bp) {
     return o.dag && o.voxel.resolution == 0 && bp.pieces.empty() && bp.instances.size() >= kBoxProxyMinInstances;
