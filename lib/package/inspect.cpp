@@ -146,7 +146,7 @@ void read_resident(Ctx& c) {
           if (const size_t nb = fmt::cull_node_bytes(c.r.header().bvh_width);
               const void* cn = v.get_raw(SectionType::kCullNodes, nb, res.cull_count, false)) {
             res.cull_nodes.resize(res.cull_count * nb);
-            std::memcpy(res.cull_nodes.data(), cn, res.cull_nodes.size());
+            if (!res.cull_nodes.empty()) std::memcpy(res.cull_nodes.data(), cn, res.cull_nodes.size());  // none: no pointer
           }
           res.dag_ok = true;
           break;
