@@ -215,9 +215,64 @@ inline uint32_t gather_corners(uint64_t m) {
 // and the float rounding of (plane - org) * inv is added to the growth: at most 3u·(|org| + R) cells,
 // counted as 8u·(|org| + R) + 2^-12 (u = 2^-24; 2^-12 covers rounding the grown planes near 1024).
 // The eight children of a node take their slabs from a 2-entry table per axis (branch-free lanes).
+namespace {
+
+// SPEC §4.5 (7.0): is any instance box of the grid met within the ray's interval? In double, each box
+// grown by 1e-5 of its coordinates' and the origin's magnitudes and the interval by 1e-5 of itself (the
+// float kernels' rounding is ~1e-7 of those): every box the point's instance walk may hit is hit here.
+// A NaN anywhere counts as a hit, and so does a tree deeper than the fixed stack (no allocation).
+template <int W>
+bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const double o[3], const double d[3], double tnear,
+                      double tfar) {
+  const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
+  const double tn = tnear - 1e-5 * std::fabs(tnear), tf = tfar + 1e-5 * std::fabs(tfar);
+  constexpr int kStack = 64;
+  uint64_t stack[kStack];
+  int sp = 0;
+  stack[sp++] = g.root;
+  while (sp > 0) {
+    const fmt::CullNode<W>& n = nodes[stack[--sp]];
+    for (int l = 0; l < W; ++l) {
+      const uint32_t c = n.child[l];
+      if (fmt::ChildRef::is_empty(c)) continue;
+      double t0 = tn, t1 = tf;
+      bool miss = false;
+      for (int k = 0; k < 3; ++k) {
+        const double lo = fmt::cull_plane(n.origin[k], n.scale[k], n.lo[k][l]), hi = fmt::cull_plane(n.origin[k], n.scale[k], n.hi[k][l]);
+        const double pad = 1e-5 * (std::fabs(lo) + std::fabs(hi) + std::fabs(o[k]));
+        if (d[k] == 0) {
+          miss |= o[k] < lo - pad || o[k] > hi + pad;
+          continue;
+        }
+        double a = (lo - pad - o[k]) / d[k], b = (hi + pad - o[k]) / d[k];
+        if (a > b) std::swap(a, b);
+        if (a > t0) t0 = a;
+        if (b < t1) t1 = b;
+      }
+      if (miss || t0 > t1) continue;  // false for NaN: a hit
+      if (fmt::ChildRef::is_leaf(c)) return true;
+      if (sp == kStack) return true;
+      stack[sp++] = uint64_t(g.root) + c;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org[3], const double dir[3], double tnear,
                        double tfar) {
   DagHit out;
+  if (g.resolution == fmt::kDagBoxes) {  // 7.0: instance boxes, no entry distance (tnear as it is)
+    bool any = true;  // without nodes nothing is culled (check_dags refuses that package)
+    switch (v.cull ? v.cull_width : 0) {
+      case 4: any = any_instance_box<4>(g, v, org, dir, tnear, tfar); break;
+      case 8: any = any_instance_box<8>(g, v, org, dir, tnear, tfar); break;
+      case 16: any = any_instance_box<16>(g, v, org, dir, tnear, tfar); break;
+      default: break;
+    }
+    return {!any, tnear};
+  }
   if (g.root == fmt::kDagEmpty) return out;
   constexpr float kInfF = std::numeric_limits<float>::infinity();
   const __m128 kSigns = _mm_setr_ps(-1.0f, -1.0f, 1.0f, 1.0f);
@@ -367,60 +422,8 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   return out;
 }
 
-namespace {
-
-// SPEC §4.5 (7.0): is any instance box of the grid met within the ray's interval? In double, each box
-// grown by 1e-5 of its coordinates' and the origin's magnitudes and the interval by 1e-5 of itself (the
-// float kernels' rounding is ~1e-7 of those): every box the point's instance walk may hit is hit here.
-// A NaN anywhere counts as a hit, and so does a tree deeper than the fixed stack (no allocation).
-template <int W>
-bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const fmt::Ray& ray) {
-  const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
-  const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
-  const double tn = double(ray.tnear) - 1e-5 * std::fabs(double(ray.tnear)), tf = double(ray.tfar) + 1e-5 * std::fabs(double(ray.tfar));
-  constexpr int kStack = 64;
-  uint64_t stack[kStack];
-  int sp = 0;
-  stack[sp++] = g.root;
-  while (sp > 0) {
-    const fmt::CullNode<W>& n = nodes[stack[--sp]];
-    for (int l = 0; l < W; ++l) {
-      const uint32_t c = n.child[l];
-      if (fmt::ChildRef::is_empty(c)) continue;
-      double t0 = tn, t1 = tf;
-      bool miss = false;
-      for (int k = 0; k < 3; ++k) {
-        const double lo = fmt::cull_plane(n.origin[k], n.scale[k], n.lo[k][l]), hi = fmt::cull_plane(n.origin[k], n.scale[k], n.hi[k][l]);
-        const double pad = 1e-5 * (std::fabs(lo) + std::fabs(hi) + std::fabs(o[k]));
-        if (d[k] == 0) {
-          miss |= o[k] < lo - pad || o[k] > hi + pad;
-          continue;
-        }
-        double a = (lo - pad - o[k]) / d[k], b = (hi + pad - o[k]) / d[k];
-        if (a > b) std::swap(a, b);
-        if (a > t0) t0 = a;
-        if (b < t1) t1 = b;
-      }
-      if (miss || t0 > t1) continue;  // false for NaN: a hit
-      if (fmt::ChildRef::is_leaf(c)) return true;
-      if (sp == kStack) return true;
-      stack[sp++] = uint64_t(g.root) + c;
-    }
-  }
-  return false;
-}
-
-}  // namespace
 
 bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray) {
-  if (grid.resolution == fmt::kDagBoxes) {
-    switch (pool.cull ? pool.cull_width : 0) {
-      case 4: return any_instance_box<4>(grid, pool, ray);
-      case 8: return any_instance_box<8>(grid, pool, ray);
-      case 16: return any_instance_box<16>(grid, pool, ray);
-      default: return true;  // check_dags refuses this
-    }
-  }
   const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
   const DagHit h = dag_first_entry(grid, pool, org, dir, ray.tnear, ray.tfar);
   if (h.culled) return false;

@@ -43,7 +43,8 @@ struct DagHit {
 // The cell growth the ray test uses for this ray (SPEC §4.5).
 double dag_ray_growth(const fmt::DagGrid& grid, const double org[3]);
 // Front-to-back DFS over the DAG with the eight child boxes tested together, clipped to
-// [tnear, tfar] (fixed stack, no allocation). Requires check_dag() to have passed.
+// [tnear, tfar] (fixed stack, no allocation); for an instance-box grid, culled or t_entry = tnear.
+// Requires check_dag() to have passed.
 DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3],
                        double tnear, double tfar);
 // Molenaar 2019 §4.2, as both package tracers apply it before walking a batching point's BVH: false

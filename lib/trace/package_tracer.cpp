@@ -150,10 +150,6 @@ class Tracer final : public PackageTracer {
   voxel::DagHit test_point_dag(size_t p, const fmt::Ray& ray) const override {
     if (!grids_ || p >= points_.size()) return {false, double(ray.tnear)};
     const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
-    if (grids_[p].resolution == fmt::kDagBoxes) {  // instance boxes: culled or not, tnear as it is
-      fmt::Ray r = ray;
-      return voxel::dag_enter(grids_[p], dag_, r) ? voxel::DagHit{false, double(ray.tnear)} : voxel::DagHit{};
-    }
     return voxel::dag_first_entry(grids_[p], dag_, org, dir, ray.tnear, ray.tfar);
   }
 
