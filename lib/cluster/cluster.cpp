@@ -50,6 +50,13 @@ Aabb instance_bounds(const Scene& s, const Instance& in, const Aabb& local) {
 constexpr size_t kParallelObjects = size_t(1) << 15;
 constexpr int kBins = 16;
 
+// Aabb::grow(b), inline (as calls, with the binning's three per object, they were most of the cut's
+// instructions): an empty box adds nothing, and a box with lo <= hi grows acc by lo and hi alike.
+[[gnu::always_inline]] inline void grow_box(Aabb& acc, const Aabb& b) {
+  if (b.empty()) return;
+  for (int i = 0; i < 3; ++i) acc.lo[i] = std::min(acc.lo[i], b.lo[i]), acc.hi[i] = std::max(acc.hi[i], b.hi[i]);
+}
+
 // Per axis and bin: the objects' boxes, weights and counts (Molenaar 2019 §3.1, after Embree's binning).
 struct Bins {
   std::array<std::array<Aabb, kBins>, 3> box{};
@@ -86,26 +93,72 @@ Acc reduce_objects(const std::vector<Object>& objs, size_t b, size_t e, const F&
       });
 }
 
-// A stable partition of [b, e) by `left`, in parallel for large ranges: the flags, per-block counts, a
-// prefix over the blocks and a scatter into scratch[b, e) keep the serial order exactly. `scratch` is as
-// long as objs, shared by every range (ranges cut in parallel are disjoint): a fresh copy per call
-// wrote 64 MB per tree level of a 10^6-instance scene, the top one faulted in as well.
+// A node's objects summed in one pass: their box, their centroids' box and their weight.
+struct BoxWeight {
+  Aabb box, centroids;
+  uint64_t weight = 0;
+  // Inline: as Aabb::grow calls these were 5 % of a 10^6-instance convert's samples.
+  [[gnu::always_inline]] void add(const Object& o) {
+    grow_box(box, o.box);
+    const Vec3d c = o.box.center();
+    for (int i = 0; i < 3; ++i) centroids.lo[i] = std::min(centroids.lo[i], c[i]), centroids.hi[i] = std::max(centroids.hi[i], c[i]);
+    weight += o.weight;
+  }
+  void join(const BoxWeight& y) {
+    box.grow(y.box);
+    centroids.grow(y.centroids);
+    weight += y.weight;
+  }
+};
+
+// A stable partition of [b, e) by `left` that sums each side's BoxWeight on the way (the children's
+// bounds without another pass over their objects: on a 10^6-instance scene each pass is 64 MB per
+// level). Left objects move down in place, right ones through scratch[b, e); large ranges in parallel
+// by blocks (flags, per-block counts and sums, a prefix, a scatter), keeping the serial order exactly.
+// Sums are min/max and integer additions: the same whatever the blocks. `scratch` is as long as objs,
+// shared by every range (ranges cut in parallel are disjoint).
 template <class P>
-size_t stable_partition_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const P& left) {
-  if (e - b < kParallelObjects)
-    return size_t(std::stable_partition(objs.begin() + long(b), objs.begin() + long(e), left) - objs.begin());
+size_t stable_partition_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const P& left,
+                                BoxWeight& lw, BoxWeight& rw) {
+  if (scratch.size() < objs.size()) throw Error(ExitCode::kInternal, "stable_partition_objects: scratch shorter than the objects");
+  if (e - b < kParallelObjects) {
+    // Without a branch on the side (which side is data: half the objects would mispredict).
+    size_t w = b, r = b;
+    BoxWeight* sums[2] = {&rw, &lw};
+    Object* to[2] = {scratch.data(), objs.data()};
+    for (size_t i = b; i < e; ++i) {
+      const Object o = objs[i];
+      const size_t l = left(o) ? 1 : 0;
+      sums[l]->add(o);
+      to[l][l ? w : r] = o;  // w <= i: a slot already read
+      w += l;
+      r += 1 - l;
+    }
+    std::copy(scratch.begin() + long(b), scratch.begin() + long(r), objs.begin() + long(w));
+    return w;
+  }
   constexpr size_t kBlock = 8192;
   const size_t n = e - b, blocks = (n + kBlock - 1) / kBlock;
   std::vector<uint8_t> flag(n);
   std::vector<size_t> lefts(blocks + 1, 0);
+  std::vector<BoxWeight> lsum(blocks), rsum(blocks);
   tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
     size_t c = 0;
-    for (size_t i = k * kBlock; i < std::min(n, (k + 1) * kBlock); ++i) c += (flag[i] = left(objs[b + i]) ? 1 : 0);
+    for (size_t i = k * kBlock; i < std::min(n, (k + 1) * kBlock); ++i) {
+      const Object& o = objs[b + i];
+      const bool l = left(o);
+      flag[i] = l ? 1 : 0;
+      c += l ? 1 : 0;
+      (l ? lsum[k] : rsum[k]).add(o);
+    }
     lefts[k + 1] = c;
   });
-  for (size_t k = 0; k < blocks; ++k) lefts[k + 1] += lefts[k];
+  for (size_t k = 0; k < blocks; ++k) {
+    lefts[k + 1] += lefts[k];
+    lw.join(lsum[k]);
+    rw.join(rsum[k]);
+  }
   const size_t total_left = lefts[blocks];
-  if (scratch.size() < objs.size()) throw Error(ExitCode::kInternal, "stable_partition_objects: scratch shorter than the objects");
   Object* out = scratch.data() + b;
   tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
     size_t l = lefts[k], r = total_left + k * kBlock - lefts[k];
@@ -119,8 +172,9 @@ size_t stable_partition_objects(std::vector<Object>& objs, std::vector<Object>& 
 
 // Molenaar 2019 §3.1 (after Embree's binned SAH): split objects[b,e) by the best of 3 axes × 16 bins
 // on centroids, cost Σ SA(child) · weight(child); median split when every centroid is equal.
-// `cb`: the bounds of the objects' centroids.
-size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const Aabb& cb) {
+// `cb`: the bounds of the objects' centroids; lw, rw: the two sides' sums.
+size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const Aabb& cb,
+                     BoxWeight& lw, BoxWeight& rw) {
   std::array<double, 3> lo{}, ext{};
   for (int a = 0; a < 3; ++a) lo[size_t(a)] = cb.lo[a], ext[size_t(a)] = cb.hi[a] - cb.lo[a];
   const Bins bins = reduce_objects<Bins>(
@@ -129,7 +183,7 @@ size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, si
         for (int a = 0; a < 3; ++a) {
           if (!(ext[size_t(a)] > 0)) continue;
           const size_t k = size_t(bin_of(centroid(o, a), lo[size_t(a)], ext[size_t(a)]));
-          acc.box[size_t(a)][k].grow(o.box);
+          grow_box(acc.box[size_t(a)][k], o.box);
           acc.w[size_t(a)][k] += o.weight + 1;
           ++acc.n[size_t(a)][k];
         }
@@ -166,9 +220,14 @@ size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, si
       }
     }
   }
-  if (best_axis < 0) return b + (e - b) / 2;  // all centroids equal: split by index
+  if (best_axis < 0) {  // all centroids equal: split by index
+    const size_t mid = b + (e - b) / 2;
+    for (size_t i = b; i < e; ++i) (i < mid ? lw : rw).add(objs[i]);
+    return mid;
+  }
   const double blo = lo[size_t(best_axis)], bext = ext[size_t(best_axis)];
-  return stable_partition_objects(objs, scratch, b, e, [&](const Object& o) { return bin_of(centroid(o, best_axis), blo, bext) <= best_bin; });
+  return stable_partition_objects(
+      objs, scratch, b, e, [&](const Object& o) { return bin_of(centroid(o, best_axis), blo, bext) <= best_bin; }, lw, rw);
 }
 
 // Collapses the binary cluster tree into the 4-wide top level: each node takes up to 4 descendants,
@@ -247,31 +306,23 @@ struct Cutter {
   Cutter(const Scene& s, const Plan& p, std::vector<Object>& o) : scene(s), plan(p), objs(o) {}
 
   void run() {
-    if (objs.size() >= kParallelObjects) scratch.resize(objs.size());  // only the parallel partition uses it
+    scratch.resize(objs.size());  // stable_partition_objects' right sides
     nodes.grow_by(1);
-    cut(0, objs.size(), 0);
+    const BoxWeight root = reduce_objects<BoxWeight>(
+        objs, 0, objs.size(), [](const Object& o, BoxWeight& acc) { acc.add(o); },
+        [](BoxWeight& x, const BoxWeight& y) { x.join(y); });
+    cut(0, objs.size(), 0, root);
     tasks.wait();
   }
 
-  void cut(size_t b0, size_t e0, uint32_t id0) {
-    struct Range { size_t b, e; uint32_t node; };
-    std::vector<Range> stack = {{b0, e0, id0}};
+  // [b0, e0) with its sums bw0 (the parent's partition made them: no pass of its own).
+  void cut(size_t b0, size_t e0, uint32_t id0, const BoxWeight& bw0) {
+    struct Range { size_t b, e; uint32_t node; BoxWeight bw; };
+    std::vector<Range> stack = {{b0, e0, id0, bw0}};
     while (!stack.empty()) {
       const Range t = stack.back();
       stack.pop_back();
-      struct BoxWeight { Aabb box, centroids; uint64_t weight = 0; };  // one pass for the node and its split
-      const BoxWeight bw = reduce_objects<BoxWeight>(
-          objs, t.b, t.e,
-          [](const Object& o, BoxWeight& acc) {
-            acc.box.grow(o.box);
-            acc.centroids.grow(o.box.center());
-            acc.weight += o.weight;
-          },
-          [](BoxWeight& x, const BoxWeight& y) {
-            x.box.grow(y.box);
-            x.centroids.grow(y.centroids);
-            x.weight += y.weight;
-          });
+      const BoxWeight& bw = t.bw;
       CutNode& node = nodes[t.node];
       node.box = bw.box;
       if (bw.weight <= plan.chunk_target || t.e - t.b == 1) {
@@ -290,15 +341,16 @@ struct Cutter {
         std::sort(bp.instances.begin(), bp.instances.end());
         continue;
       }
-      const size_t mid = split_objects(objs, scratch, t.b, t.e, bw.centroids);
+      BoxWeight lw, rw;
+      const size_t mid = split_objects(objs, scratch, t.b, t.e, bw.centroids, lw, rw);
       const uint32_t l = uint32_t(nodes.grow_by(2) - nodes.begin()), r = l + 1;
       node.kid[0] = l;
       node.kid[1] = r;
-      const Range left{t.b, mid, l}, right{mid, t.e, r};
+      const Range left{t.b, mid, l, lw}, right{mid, t.e, r, rw};
       const bool left_smaller = mid - t.b < t.e - mid;
       const Range small = left_smaller ? left : right, large = left_smaller ? right : left;
       if (small.e - small.b >= kTaskObjects)
-        tasks.run([this, small] { cut(small.b, small.e, small.node); });
+        tasks.run([this, small] { cut(small.b, small.e, small.node, small.bw); });
       else
         stack.push_back(small);
       stack.push_back(large);
