@@ -3,9 +3,13 @@
 #include <gtest/gtest.h>
 #include <oneapi/tbb/global_control.h>
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
+#include <random>
+#include <vector>
 
 #include "bvh/bvh.h"
 #include "mesh/shapes.h"
@@ -271,6 +275,26 @@ TEST(BvhScene, TransformBoundsContainCorners) {
       EXPECT_LT(double(w.lo[a]), q2[a]);  // strictly: one extra float step outward
       EXPECT_GT(double(w.hi[a]), q2[a]);
     }
+  }
+}
+
+// float_down / float_up are std::nextafter towards -inf / +inf, bit for bit: the special values and
+// random bit patterns of every class (denormals, zeros of both signs, the largest finite, NaN).
+TEST(BvhScene, FloatStepsAreNextafter) {
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<float> v = {0.0f, -0.0f, inf, -inf, std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                          std::numeric_limits<float>::min(), -std::numeric_limits<float>::min(),
+                          std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(), 1.0f, -1.0f,
+                          3000000.25f, -2000000.75f};
+  std::mt19937 rng(11);
+  for (int i = 0; i < 100000; ++i) v.push_back(std::bit_cast<float>(uint32_t(rng())));
+  for (float x : v) {
+    if (std::isnan(x)) {
+      EXPECT_TRUE(std::isnan(float_down(x)) && std::isnan(float_up(x)));
+      continue;
+    }
+    EXPECT_EQ(std::bit_cast<uint32_t>(float_down(x)), std::bit_cast<uint32_t>(std::nextafter(x, -inf))) << x;
+    EXPECT_EQ(std::bit_cast<uint32_t>(float_up(x)), std::bit_cast<uint32_t>(std::nextafter(x, inf))) << x;
   }
 }
 

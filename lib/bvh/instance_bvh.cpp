@@ -75,28 +75,31 @@ Box3f transform_bounds(const Affine3x4& m, const Box3f* local, size_t count) {
   double lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
   for (size_t b = 0; b < count; ++b) {
     if (bvh::is_empty(local[b])) continue;
-    for (int corner = 0; corner < 8; ++corner) {
-      const Vec3d p{local[b].lo[0], local[b].lo[1], local[b].lo[2]};
-      Vec3d q = p;
-      for (int a = 0; a < 3; ++a)
-        if (corner & (1 << a)) q[a] = local[b].hi[a];
-      const Vec3d w = m.apply(q);
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = std::min(lo[a], w[a]);
-        hi[a] = std::max(hi[a], w[a]);
+    // The eight corners' m.apply(q) per axis, ((m0 x + m1 y) + m2 z) + m3 as Affine3x4::apply adds them
+    // (the same bits), from the six products and four partial sums a corner shares with the others.
+    for (int a = 0; a < 3; ++a) {
+      double px[2], py[2], pz[2];
+      for (int i = 0; i < 2; ++i) {
+        px[i] = m(a, 0) * double(i ? local[b].hi[0] : local[b].lo[0]);
+        py[i] = m(a, 1) * double(i ? local[b].hi[1] : local[b].lo[1]);
+        pz[i] = m(a, 2) * double(i ? local[b].hi[2] : local[b].lo[2]);
+      }
+      for (int c = 0; c < 8; ++c) {
+        const double w = px[c & 1] + py[c >> 1 & 1] + pz[c >> 2 & 1] + m(a, 3);
+        lo[a] = std::min(lo[a], w);
+        hi[a] = std::max(hi[a], w);
       }
     }
   }
   Box3f out;
   if (!(lo[0] <= hi[0])) return out;  // nothing to bound
-  const float finf = std::numeric_limits<float>::infinity();
   for (int a = 0; a < 3; ++a) {
     // Round outward, then one more float step for the error of the double transform.
     float l = float(lo[a]), h = float(hi[a]);
-    if (double(l) > lo[a]) l = std::nextafter(l, -finf);
-    if (double(h) < hi[a]) h = std::nextafter(h, finf);
-    out.lo[a] = bvh::no_negative_zero(std::nextafter(l, -finf));
-    out.hi[a] = bvh::no_negative_zero(std::nextafter(h, finf));
+    if (double(l) > lo[a]) l = float_down(l);
+    if (double(h) < hi[a]) h = float_up(h);
+    out.lo[a] = bvh::no_negative_zero(float_down(l));
+    out.hi[a] = bvh::no_negative_zero(float_up(h));
   }
   return out;
 }

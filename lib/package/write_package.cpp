@@ -30,8 +30,8 @@ Box3f box_of(const Aabb& a) {
   Box3f b;
   if (a.empty()) return b;
   for (int k = 0; k < 3; ++k) {
-    b.lo[k] = std::nextafter(float(a.lo[k]), -Box3f::kInf);
-    b.hi[k] = std::nextafter(float(a.hi[k]), Box3f::kInf);
+    b.lo[k] = float_down(float(a.lo[k]));
+    b.hi[k] = float_up(float(a.hi[k]));
   }
   return b;
 }

@@ -7,12 +7,14 @@
 #include <cmath>
 #include <limits>
 
+#include "core/math.h"
+
 namespace rtp::voxel {
 namespace {
 
 float scale_up(double v) {  // the float nearest above v
   float f = float(v);
-  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  if (double(f) < v) f = float_up(f);
   return f;
 }
 
@@ -37,7 +39,7 @@ bool quantize_instance_bvh(const std::vector<fmt::WideNode<W>>& nodes, std::vect
       if (!(lo <= hi)) lo = hi = 0;  // no filled lane
       // The smallest float scale whose 255 steps from lo reach hi, as cull_plane decodes them.
       float scale = scale_up((double(hi) - double(lo)) / 255.0);
-      while (fmt::cull_plane(lo, scale, 255) < double(hi)) scale = std::nextafter(scale, std::numeric_limits<float>::infinity());
+      while (fmt::cull_plane(lo, scale, 255) < double(hi)) scale = float_up(scale);
       if (!std::isfinite(scale)) {
         out.resize(first);
         return false;
