@@ -178,6 +178,10 @@ void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
   }
 }
 
+void OutputFile::start_writeback(uint64_t offset, uint64_t size) {
+  if (!device_ && size) (void)::sync_file_range(fd_, off_t(offset), off_t(size), SYNC_FILE_RANGE_WRITE);
+}
+
 void OutputFile::set_size(uint64_t size) {
   if (!device_ && ::ftruncate(fd_, off_t(size)) != 0) fail_output(path_, std::strerror(errno));
 }

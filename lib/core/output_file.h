@@ -33,6 +33,9 @@ class OutputFile {
 
   // pwrite of all `size` bytes at `offset` (a device: written as asked). Throws Error(kOutput).
   void write_at(uint64_t offset, const void* data, size_t size);
+  // Starts writing [offset, offset + size) back to the disk without waiting (regular files; best
+  // effort: commit's fsync reports what fails), so commit waits only for the rest.
+  void start_writeback(uint64_t offset, uint64_t size);
   // Sets the final size (regular files only; a device is left alone).
   void set_size(uint64_t size);
   // Flushes and puts the file at its path, replacing a previous one atomically. Throws Error(kOutput).

@@ -50,6 +50,7 @@ class PackageWriter {
   OutputFile out_;
   int level_;
   uint64_t offset_ = fmt::kAlignment;
+  uint64_t written_back_ = 0;  // [0, written_back_) handed to start_writeback
   std::vector<fmt::TocEntry> toc_;
   bool finished_ = false;
 };

@@ -12,6 +12,8 @@
 
 namespace rtp {
 
+constexpr uint64_t kWritebackBytes = uint64_t(8) << 20;
+
 PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(path), level_(zstd_level) {
   if (zstd_level < kMinZstdLevel || zstd_level > ZSTD_maxCLevel())
     throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be " + std::to_string(kMinZstdLevel) +
@@ -83,6 +85,12 @@ const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id,
   e.crc32c = crc32c(stored.data(), stored.size());
   write_at(offset_, stored.data(), stored.size());
   offset_ = (offset_ + stored.size() + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
+  // The chunks go to the disk while later ones are built: finish's fsync of forest-1m's 123 MB was
+  // 280-330 ms of one thread at the end of a 2-thread convert.
+  if (offset_ - written_back_ >= kWritebackBytes) {
+    out_.start_writeback(written_back_, offset_ - written_back_);
+    written_back_ = offset_;
+  }
   toc_.push_back(e);
   return toc_.back();
 }
