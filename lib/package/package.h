@@ -33,9 +33,12 @@ class PackageWriter {
   // The same in two steps, so compression can run on other threads: compress() is thread-safe
   // and deterministic (single-threaded zstd); add_packed() appends in call order.
   // raw_literals: zstd stores literals as they are, without Huffman coding; min_match > 0: zstd's
-  // shortest match (3..7) instead of the level's own (see ConvertOptions).
+  // shortest match (3..7) instead of the level's own (see ConvertOptions). workers > 0: a chunk of at
+  // least kWorkersMinBytes is compressed by that many zstd threads of its own (zstd's multithreaded
+  // mode, whose bytes are the same for any number of workers >= 1: still deterministic).
   static AlignedBytes compress(const void* data, size_t size, int level, fmt::Compression& used,
-                               bool raw_literals = false, int min_match = 0);
+                               bool raw_literals = false, int min_match = 0, int workers = 0);
+  static constexpr size_t kWorkersMinBytes = size_t(4) << 20;
   const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const AlignedBytes& stored,
                                   fmt::Compression compression, uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
