@@ -90,6 +90,37 @@ TEST_F(Container, SameInputSameBytes) {
   EXPECT_TRUE(std::equal(std::istreambuf_iterator<char>(a), {}, std::istreambuf_iterator<char>(b)));
 }
 
+// Large chunks: zstd's own threads give the same frame for any number of workers >= 1 (the late
+// resident chunks follow --threads), and packages past the writer's writeback step (8 MiB) read back
+// whole.
+TEST_F(Container, LargeChunksSameBytesForAnyWorkersAndReadBack) {
+  const std::vector<uint8_t> big = pattern(PackageWriter::kWorkersMinBytes + 1234567, 6);
+  fmt::Compression c1{}, c2{}, c3{};
+  const AlignedBytes one = PackageWriter::compress(big.data(), big.size(), 1, c1, false, 0, 1);
+  const AlignedBytes two = PackageWriter::compress(big.data(), big.size(), 1, c2, false, 0, 2);
+  const AlignedBytes three = PackageWriter::compress(big.data(), big.size(), 1, c3, false, 0, 3);
+  ASSERT_EQ(c1, fmt::Compression::kZstd);
+  EXPECT_EQ(c2, c1);
+  EXPECT_EQ(c3, c1);
+  EXPECT_TRUE(std::equal(one.begin(), one.end(), two.begin(), two.end()));
+  EXPECT_TRUE(std::equal(one.begin(), one.end(), three.begin(), three.end()));
+  const std::string p = (dir / "big.rtp").string();
+  const std::vector<uint8_t> other = pattern(size_t(9) << 20, 7);
+  {
+    PackageWriter w(p, 1);
+    w.add_packed(fmt::ChunkKind::kBatchingPoint, 0, two, c2, big.size());
+    w.add_chunk(fmt::ChunkKind::kBatchingPoint, 1, other.data(), other.size());
+    w.add_chunk(fmt::ChunkKind::kBatchingPoint, 2, big.data(), 100);
+    w.finish(fmt::Header{});
+  }
+  PackageReader r(p);
+  ASSERT_EQ(r.toc().size(), 3u);
+  const AlignedBytes a = r.read(0), b = r.read(1), c = r.read(2);
+  EXPECT_TRUE(std::equal(big.begin(), big.end(), a.begin(), a.end()));
+  EXPECT_TRUE(std::equal(other.begin(), other.end(), b.begin(), b.end()));
+  EXPECT_TRUE(std::equal(big.begin(), big.begin() + 100, c.begin(), c.end()));
+}
+
 TEST_F(Container, WriterThatIsNotFinishedLeavesNothing) {
   {
     PackageWriter w((dir / "x.rtp").string());
