@@ -31,7 +31,8 @@ class PackageWriter {
   // checksums and appends one chunk at the next 4 KiB boundary. Chunks are written in call order.
   const fmt::TocEntry& add_chunk(fmt::ChunkKind kind, uint64_t id, const void* data, size_t size);
   // The same in two steps, so compression can run on other threads: compress() is thread-safe
-  // and deterministic (single-threaded zstd); add_packed() appends in call order.
+  // and deterministic (its bytes depend on the data and the arguments, never on timing or on how many
+  // threads run it); add_packed() appends in call order.
   // raw_literals: zstd stores literals as they are, without Huffman coding; min_match > 0: zstd's
   // shortest match (3..7) instead of the level's own (see ConvertOptions). workers > 0: a chunk of at
   // least kWorkersMinBytes is compressed by that many zstd threads of its own (zstd's multithreaded

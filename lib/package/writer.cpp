@@ -89,7 +89,7 @@ const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id,
   write_at(offset_, stored.data(), stored.size());
   offset_ = (offset_ + stored.size() + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
   // The chunks go to the disk while later ones are built: finish's fsync of forest-1m's 123 MB was
-  // 280-330 ms of one thread at the end of a 2-thread convert.
+  // 314-366 ms of one thread at the end of a 2-thread convert, 105-212 ms with this.
   if (offset_ - written_back_ >= kWritebackBytes) {
     out_.start_writeback(written_back_, offset_ - written_back_);
     written_back_ = offset_;
