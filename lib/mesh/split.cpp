@@ -29,41 +29,59 @@ struct Bin {
   uint32_t count = 0;
 };
 
+// The bin of centroid coordinate c in a range whose centroid box starts at lo, scale = kBins / extent
+// (computed once per range and axis).
+inline int bin_index(double c, double lo, double scale) {
+  double t = (c - lo) * scale;
+  if (!(t >= 0)) t = 0;  // NaN centroids go left
+  return std::min(kBins - 1, int(std::min(t, double(kBins))));
+}
+
 // Best binned SAH plane over [begin, end): returns false when no plane puts centroids on both sides.
 // On success, `axis` and `split_bin` (left = bins [0, split_bin)) describe it, with the binning of
 // `cbox`. Ties keep the first (axis x before y before z, lower plane first): deterministic.
 bool find_sah_split(const std::vector<Prim>& prims, const uint32_t* begin, const uint32_t* end,
                     const Aabb& cbox, int& axis, int& split_bin) {
+  // The three axes binned in one pass over the range (each axis's bins get the same primitives in the
+  // same order as a pass per axis, so the same boxes): a pass per axis read every primitive 3 times.
+  double scale[3];
+  bool usable[3];
+  for (int a = 0; a < 3; ++a) {
+    const double extent = cbox.hi[a] - cbox.lo[a];
+    usable[a] = extent > 0 && std::isfinite(extent);
+    scale[a] = usable[a] ? kBins / extent : 0;
+  }
+  if (!usable[0] && !usable[1] && !usable[2]) return false;
+  std::array<std::array<Bin, kBins>, 3> bins;
+  for (const uint32_t* p = begin; p != end; ++p) {
+    const Prim& prim = prims[*p];
+    for (int a = 0; a < 3; ++a) {
+      if (!usable[a]) continue;
+      Bin& bin = bins[a][bin_index(prim.centroid[a], cbox.lo[a], scale[a])];
+      bin.box.grow(prim.box);
+      ++bin.count;
+    }
+  }
   double best = std::numeric_limits<double>::infinity();
   bool found = false;
   for (int a = 0; a < 3; ++a) {
-    const double extent = cbox.hi[a] - cbox.lo[a];
-    if (!(extent > 0) || !std::isfinite(extent)) continue;
-    const double scale = kBins / extent;
-    std::array<Bin, kBins> bins;
-    for (const uint32_t* p = begin; p != end; ++p) {
-      double t = (prims[*p].centroid[a] - cbox.lo[a]) * scale;
-      if (!(t >= 0)) t = 0;  // NaN centroids go left
-      const int b = std::min(kBins - 1, int(std::min(t, double(kBins))));
-      bins[b].box.grow(prims[*p].box);
-      ++bins[b].count;
-    }
+    if (!usable[a]) continue;
     // Sweep from the right for suffix areas/counts, then from the left.
     std::array<double, kBins> right_area{};
     std::array<uint32_t, kBins> right_count{};
     Aabb acc;
     uint32_t n = 0;
     for (int b = kBins - 1; b > 0; --b) {
-      acc.grow(bins[b].box);
-      n += bins[b].count;
+      acc.grow(bins[a][b].box);
+      n += bins[a][b].count;
       right_area[b] = acc.surface_area();
       right_count[b] = n;
     }
     acc = Aabb{};
     n = 0;
     for (int b = 1; b < kBins; ++b) {
-      acc.grow(bins[b - 1].box);
-      n += bins[b - 1].count;
+      acc.grow(bins[a][b - 1].box);
+      n += bins[a][b - 1].count;
       if (n == 0 || right_count[b] == 0) continue;
       const double cost = acc.surface_area() * n + right_area[b] * right_count[b];
       if (cost < best || (!found && !std::isnan(cost))) {
@@ -75,12 +93,6 @@ bool find_sah_split(const std::vector<Prim>& prims, const uint32_t* begin, const
     }
   }
   return found;
-}
-
-int bin_of(const Prim& prim, const Aabb& cbox, int axis) {
-  double t = (prim.centroid[axis] - cbox.lo[axis]) * (kBins / (cbox.hi[axis] - cbox.lo[axis]));
-  if (!(t >= 0)) t = 0;
-  return std::min(kBins - 1, int(std::min(t, double(kBins))));
 }
 
 // Median split on the axis of largest centroid extent (x when none is finite and positive); the key
@@ -152,7 +164,8 @@ std::vector<Mesh> split_mesh(const Mesh& mesh, uint32_t max_triangles) {
     uint32_t* mid;
     if (find_sah_split(prims, b, e, cbox, axis, split_bin)) {
       // Stable: both sides keep triangle order.
-      mid = std::stable_partition(b, e, [&](uint32_t t) { return bin_of(prims[t], cbox, axis) < split_bin; });
+      const double lo = cbox.lo[axis], scale = kBins / (cbox.hi[axis] - cbox.lo[axis]);  // as find_sah_split's
+      mid = std::stable_partition(b, e, [&](uint32_t t) { return bin_index(prims[t].centroid[axis], lo, scale) < split_bin; });
     } else {
       mid = median_split(prims, b, e, cbox);
     }
