@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "core/background_sync.h"
 #include "core/error.h"
 
 namespace rtp {
@@ -157,6 +158,7 @@ OutputFile::OutputFile(const std::string& path) : path_(path) {
 }
 
 OutputFile::~OutputFile() {
+  sync_.reset();  // its thread joined before the descriptor it flushes is closed
   if (fd_ >= 0) ::close(fd_);
   if (!named_tmp_.empty() && !committed_) {
     ::unlink(named_tmp_.c_str());
@@ -178,8 +180,10 @@ void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
   }
 }
 
-void OutputFile::start_writeback(uint64_t offset, uint64_t size) {
-  if (!device_ && size) (void)::sync_file_range(fd_, off_t(offset), off_t(size), SYNC_FILE_RANGE_WRITE);
+void OutputFile::start_writeback() {
+  if (device_ || fd_ < 0) return;
+  if (!sync_) sync_ = std::make_unique<BackgroundSync>(fd_);
+  sync_->request();
 }
 
 void OutputFile::set_size(uint64_t size) {
@@ -224,6 +228,11 @@ void OutputFile::link_into_place() {
 
 void OutputFile::commit() {
   if (committed_) return;
+  if (sync_) {
+    const int e = sync_->finish();
+    sync_.reset();
+    if (e != 0) fail_output(path_, std::strerror(e));
+  }
   if (!device_ && ::fsync(fd_) != 0) fail_output(path_, std::strerror(errno));
   if (const char* hold = std::getenv("RTP_TEST_HOLD_OUTPUT"); hold && *hold) {
     const int m = ::open(hold, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);

@@ -14,9 +14,12 @@
 // RTP_TEST_HOLD_OUTPUT=FILE makes commit() create FILE and wait up to 60 s before linking, so a
 // test can signal a process whose output is fully written but not yet in place.
 #include <cstdint>
+#include <memory>
 #include <string>
 
 namespace rtp {
+
+class BackgroundSync;
 
 // Checks before any work that `path` can be written: an existing character device there is
 // writable, or its directory exists and is writable, it is not a directory / FIFO / socket, and an
@@ -33,9 +36,10 @@ class OutputFile {
 
   // pwrite of all `size` bytes at `offset` (a device: written as asked). Throws Error(kOutput).
   void write_at(uint64_t offset, const void* data, size_t size);
-  // Starts writing [offset, offset + size) back to the disk without waiting (regular files; best
-  // effort: commit's fsync reports what fails), so commit waits only for the rest.
-  void start_writeback(uint64_t offset, uint64_t size);
+  // Flushes what is written so far to stable storage on a thread of its own, without waiting
+  // (regular files; core/background_sync.h), so that commit's fsync waits only for the rest. A failed
+  // flush fails commit.
+  void start_writeback();
   // Sets the final size (regular files only; a device is left alone).
   void set_size(uint64_t size);
   // Flushes and puts the file at its path, replacing a previous one atomically. Throws Error(kOutput).
@@ -49,6 +53,7 @@ class OutputFile {
   std::string path_, dir_, name_, named_tmp_;  // named_tmp_: the fallback's temporary (in dir_)
   int fd_ = -1, dir_fd_ = -1;
   bool device_ = false, committed_ = false;
+  std::unique_ptr<BackgroundSync> sync_;  // started by the first start_writeback
 };
 
 // The whole of `size` bytes to `path` through an OutputFile. Throws Error(kOutput).

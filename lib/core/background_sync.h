@@ -1,0 +1,40 @@
+#pragma once
+// A thread that flushes a file's written data to stable storage (fdatasync) while its writer goes on,
+// so that the writer's final fsync waits only for what came after the last flush. On this VM the
+// fsync of a new 4 MB file took 5-6 ms even when its pages had been written back (sync_file_range)
+// beforehand, and 0.2 ms after an earlier fdatasync: the wait is the device's cache flush, which
+// only fdatasync/fsync ask for.
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <thread>
+
+namespace rtp {
+
+class BackgroundSync {
+ public:
+  explicit BackgroundSync(int fd);
+  ~BackgroundSync();  // joins the thread (a flush in progress completes)
+  BackgroundSync(const BackgroundSync&) = delete;
+  BackgroundSync& operator=(const BackgroundSync&) = delete;
+
+  // Asks for a flush of everything written so far; requests made during a flush are served by one
+  // more flush after it. Never blocks on I/O.
+  void request();
+  // Waits for the thread to finish its flushes and stops it. Returns the errno of the first failed
+  // fdatasync, 0 if none failed: the caller must report it (after a failed fdatasync the kernel may
+  // report the error to no later fsync).
+  int finish();
+
+ private:
+  void run();
+  int fd_;
+  std::mutex m_;
+  std::condition_variable cv_;
+  uint64_t requested_ = 0, served_ = 0;
+  bool stop_ = false;
+  int error_ = 0;
+  std::thread thread_;  // last: started once the members above exist
+};
+
+}  // namespace rtp
