@@ -19,25 +19,13 @@
 #include "mesh/prepare.h"
 #include "scene/import.h"
 #include "voxel/point_voxels.h"
+#include "voxel_cells.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using voxel::Grid;
-
-// Every set cell of a grid, as (x, y, z).
-template <class F>
-void for_each_cell(const Grid& g, F&& f) {
-  const uint32_t nb = g.blocks_per_axis();
-  for (uint32_t bz = 0; bz < nb; ++bz)
-    for (uint32_t by = 0; by < nb; ++by)
-      for (uint32_t bx = 0; bx < nb; ++bx)
-        for (uint64_t m = g.block(bx, by, bz); m; m &= m - 1) {
-          const uint32_t b = uint32_t(std::countr_zero(m));
-          f(4 * bx + (b & 3), 4 * by + (b >> 2 & 3), 4 * bz + (b >> 4));
-        }
-}
 
 // Every cell a mesh's triangles touch through an instance's double transform, with no margin.
 void touch_mesh(Grid& g, const Instance& in, const Mesh& m) {

@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include <atomic>
+#include <deque>
 #include <memory>
 
 #include "core/parallel.h"
@@ -132,10 +133,11 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
 
 // A batching point: its pieces (local space) with their BVHs, its local instance table and an
 // instance BVH over pieces and instances (SPEC §4.2).
-template <int W, int B>
+// before_seal runs once the point's trees are built (and its instance-box proxy quantized), before zstd.
+template <int W, int B, class BeforeSeal>
 void build_point(const Scene& scene, const Plan& plan, const fmt::InstanceRecord* table, const std::vector<Box3f>& mesh_box,
                  const BatchingPoint& bp, const BuildOptions& bo, const SealOptions& so, Job& job,
-                 std::vector<fmt::CullNode<W>>* cull_nodes) {
+                 std::vector<fmt::CullNode<W>>* cull_nodes, BeforeSeal&& before_seal) {
   ChunkParts<W, B> parts;
   AttributeChunkBuilder attrs;
   std::vector<fmt::InstanceRecord> records;
@@ -196,6 +198,7 @@ void build_point(const Scene& scene, const Plan& plan, const fmt::InstanceRecord
   parts.add_to(cb);
   job.node_bytes = (parts.node_count + top.nodes.size()) * sizeof(fmt::WideNode<W>);
   job.block_bytes = parts.block_count * sizeof(fmt::LeafBlock<B>);
+  before_seal();
   seal(cb, so, job);
 }
 
@@ -396,13 +399,25 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   tbb::task_group beside;
   beside.run([&] { early = compress_all(early_resident_jobs(scene, plan, o), o.zstd_level); });
   std::atomic<int64_t> voxel_ns{0};
+  // A batching point's culling proxy: voxelized beside the point's zstd, once its trees are built (not
+  // beside the trees: a thread that stole the voxels of a large point then left its tree to one thread),
+  // and joined to the pool in point order after the geometry is written, so the geometry reaches the
+  // disk while the voxels are made (FlightHelmet at 2 threads: its 2.8 MB point was written last and
+  // the final fsync waited 6-9 ms for it).
+  struct ProxySlot {
+    tbb::task_group voxelizing;
+    std::atomic<bool> ready{false};
+    voxel::PointProxy proxy;
+    bool boxes = false;  // proxy unused: cull holds the point's instance BVH
+    std::vector<fmt::CullNode<W>> cull;
+  };
+  // Declared after everything the voxelizing tasks read: on an error, each slot's task_group waits for
+  // its task as the slots are destroyed, before those go.
+  std::vector<std::unique_ptr<ProxySlot>> slots(o.dag ? n_pts : 0);
   struct Packed {
     Job job;
     AlignedBytes attr_stored;
     fmt::Compression attr_comp;
-    voxel::PointProxy proxy;
-    bool boxes = false;                      // proxy unused: cull holds the point's instance BVH
-    std::vector<fmt::CullNode<W>> cull;
   };
   const SealOptions seal_opt{o.zstd_level, o.zstd_raw_literals, o.zstd_leaf_min_match};
   uint64_t header_flags = 0;
@@ -417,6 +432,34 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
     ++rep.chunks;
     written += work_of(ChunkKind(e.kind), job.id);
     if (o.progress) o.progress(std::min(written, total), total);
+  };
+  // The proxies of the points written so far join the pool in point order (deterministic bytes): those
+  // ready while the pipeline runs, then (all) the rest after it.
+  std::deque<uint64_t> pending;
+  auto join_proxies = [&](bool all) {
+    while (!pending.empty() && (all || slots[pending.front()]->ready.load(std::memory_order_acquire))) {
+      const uint64_t id = pending.front();
+      pending.pop_front();
+      ProxySlot& s = *slots[id];
+      s.voxelizing.wait();  // rethrows the voxelization's error
+      if (s.boxes) {
+        fmt::DagGrid g{};
+        g.resolution = fmt::kDagBoxes;
+        g.root = uint32_t(cull_nodes.size());
+        cull_nodes.insert(cull_nodes.end(), s.cull.begin(), s.cull.end());
+        grids[id] = g;
+        rep.box_node_bytes += s.cull.size() * sizeof(fmt::CullNode<W>);
+        ++rep.box_points;
+      } else {
+        fmt::DagGrid g = s.proxy.grid;
+        g.root = pool.add(s.proxy.dag);
+        grids[id] = g;
+        rep.dag_separate_bytes += s.proxy.dag.bytes();
+        rep.dag_set_cells += s.proxy.set_cells;
+        ++rep.dag_resolutions[g.resolution];
+      }
+      slots[id].reset();
+    }
   };
   // Ordered pipeline: ids in order -> build + compress in parallel -> append in order.
   const size_t tokens = size_t(2 * tbb::this_task_arena::max_concurrency());
@@ -437,27 +480,33 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                  p.job = {ChunkKind::kMeshSegment, k, {}};
                                                  build_segment<W, B>(scene, plan.segments[k], o.bvh, seal_opt, p.job);
                                                } else {
-                                                 p.job = {ChunkKind::kBatchingPoint, k - n_seg, {}};
-                                                 p.boxes = box_proxy(plan.points[k - n_seg]);
-                                                 // The culling proxy needs no BVH: voxelized beside the point's
-                                                 // chunk, so a large point is not one thread's work end to end.
-                                                 tbb::task_group voxelizing;
-                                                 if (o.dag && !p.boxes)
-                                                   voxelizing.run([&] {
+                                                 const uint64_t id = k - n_seg;
+                                                 p.job = {ChunkKind::kBatchingPoint, id, {}};
+                                                 const BatchingPoint& bp = plan.points[id];
+                                                 ProxySlot* slot = nullptr;
+                                                 if (o.dag) {
+                                                   slots[id] = std::make_unique<ProxySlot>();
+                                                   slot = slots[id].get();
+                                                   slot->boxes = box_proxy(bp);
+                                                 }
+                                                 auto before_seal = [&] {
+                                                   if (!slot) return;
+                                                   if (slot->boxes && !slot->cull.empty()) {
+                                                     slot->ready.store(true, std::memory_order_release);
+                                                     return;
+                                                   }
+                                                   slot->boxes = false;  // root not a node: voxels after all
+                                                   slot->voxelizing.run([&, slot, id] {  // runs past this filter: no local by reference
                                                      const auto t0 = std::chrono::steady_clock::now();
-                                                     p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records,
-                                                                                     plan.points[k - n_seg], o.voxel);
+                                                     slot->proxy =
+                                                         voxel::voxelize_point(scene, plan, *mesh_proxies, records, plan.points[id], o.voxel);
                                                      voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                                                                      std::chrono::steady_clock::now() - t0).count();
+                                                     slot->ready.store(true, std::memory_order_release);
                                                    });
-                                                 build_point<W, B>(scene, plan, records, mesh_box, plan.points[k - n_seg], o.bvh,
-                                                                   seal_opt, p.job, p.boxes ? &p.cull : nullptr);
-                                                 voxelizing.wait();
-                                                 if (p.boxes && p.cull.empty()) {  // root not a node: voxels after all
-                                                   p.boxes = false;
-                                                   p.proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records,
-                                                                                   plan.points[k - n_seg], o.voxel);
-                                                 }
+                                                 };
+                                                 build_point<W, B>(scene, plan, records, mesh_box, bp, o.bvh, seal_opt, p.job,
+                                                                   slot && slot->boxes ? &slot->cull : nullptr, before_seal);
                                                }
                                                if (!p.job.attr_raw.empty())
                                                  p.attr_stored = PackageWriter::compress(
@@ -467,22 +516,6 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
           tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
             const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.job.stored, p.job.comp, p.job.raw_size);
             record(p.job, e);
-            if (o.dag && p.job.kind == ChunkKind::kBatchingPoint && p.boxes) {
-              fmt::DagGrid g{};
-              g.resolution = fmt::kDagBoxes;
-              g.root = uint32_t(cull_nodes.size());
-              cull_nodes.insert(cull_nodes.end(), p.cull.begin(), p.cull.end());
-              grids[p.job.id] = g;
-              rep.box_node_bytes += p.cull.size() * sizeof(fmt::CullNode<W>);
-              ++rep.box_points;
-            } else if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
-              fmt::DagGrid g = p.proxy.grid;
-              g.root = pool.add(p.proxy.dag);
-              grids[p.job.id] = g;
-              rep.dag_separate_bytes += p.proxy.dag.bytes();
-              rep.dag_set_cells += p.proxy.set_cells;
-              ++rep.dag_resolutions[g.resolution];
-            }
             if (!p.job.attr_raw.empty()) {  // right after its geometry: one sequential read for both
               const ChunkKind ak = p.job.kind == ChunkKind::kMeshSegment ? ChunkKind::kSegmentAttributes
                                                                           : ChunkKind::kPointAttributes;
@@ -494,7 +527,12 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
               ++rep.chunks;
               header_flags |= p.job.attr_flags;
             }
+            if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
+              pending.push_back(p.job.id);
+              join_proxies(false);
+            }
           }));
+  join_proxies(true);
   rep.dag_pool_bytes = pool.bytes();
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;
   if (o.dag && n_pts > 0) header_flags |= fmt::kFlagDag;  // no point, no grid and no pool (metadata "dag" alike)

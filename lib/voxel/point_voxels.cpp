@@ -3,6 +3,7 @@
 // tracer uses (float L^-1, double T), with the margin of point_voxels.h.
 #include "voxel/point_voxels.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -19,6 +20,7 @@ constexpr double kU = 1.0 / 16777216.0;  // 2^-24: float unit roundoff
 constexpr double kSafety = 16;
 constexpr uint32_t kLocalRes = 32;
 constexpr uint64_t kInstanceDetail = 256;
+constexpr size_t kSpanTriangles = 8192;  // a parallel unit of a point's triangle voxelization
 
 float round_up(double v) {
   float f = float(v);
@@ -226,22 +228,44 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   out.grid.ray_rel = o.thin ? 0.0f : round_up(kSafety * kU * kappa);
   Grid g({out.grid.origin[0], out.grid.origin[1], out.grid.origin[2]}, cell, res);
 
-  std::vector<Vec3d> world;
+  // The pieces' triangles in spans of at most kSpanTriangles, voxelized in parallel into one grid per
+  // thread, then merged: the union of the same cells whatever the split (a large point's voxels were
+  // one thread's 16 ms at the end of FlightHelmet's 2-thread convert while the other thread idled).
+  std::vector<std::vector<Vec3d>> world(bp.pieces.size());  // each vertex moved once, not once per triangle
+  struct Span {
+    uint32_t piece;
+    size_t first, end;  // triangles
+  };
+  std::vector<Span> spans;
   for (size_t i = 0; i < bp.pieces.size(); ++i) {
     const Effective& e = piece_eff[i];
     if (!e.usable) continue;
     const Mesh& mesh = plan.pieces[bp.pieces[i]].mesh;
-    world.resize(mesh.positions.size());  // each vertex moved once, not once per triangle
-    for (size_t k = 0; k < world.size(); ++k) world[k] = e.apply(to_d(mesh.positions[k]));
-    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
-      const Vec3d& a = world[mesh.indices[t]];
-      const Vec3d& b = world[mesh.indices[t + 1]];
-      const Vec3d& c = world[mesh.indices[t + 2]];
+    world[i].resize(mesh.positions.size());
+    for (size_t k = 0; k < world[i].size(); ++k) world[i][k] = e.apply(to_d(mesh.positions[k]));
+    const size_t tris = mesh.indices.size() / 3;
+    for (size_t t = 0; t < tris; t += kSpanTriangles) spans.push_back({uint32_t(i), t, std::min(tris, t + kSpanTriangles)});
+  }
+  auto voxelize_span = [&](Grid& into, const Span& sp) {
+    const Mesh& mesh = plan.pieces[bp.pieces[sp.piece]].mesh;
+    const std::vector<Vec3d>& w = world[sp.piece];
+    const double m = piece_eff[sp.piece].margin;
+    for (size_t t = 3 * sp.first; t < 3 * sp.end; t += 3) {
+      const Vec3d& a = w[mesh.indices[t]];
+      const Vec3d& b = w[mesh.indices[t + 1]];
+      const Vec3d& c = w[mesh.indices[t + 2]];
       if (o.thin)
-        voxelize_triangle_thin(g, a, b, c);
+        voxelize_triangle_thin(into, a, b, c);
       else
-        voxelize_triangle(g, a, b, c, e.margin);
+        voxelize_triangle(into, a, b, c, m);
     }
+  };
+  if (spans.size() == 1) {
+    voxelize_span(g, spans[0]);
+  } else if (spans.size() > 1) {
+    tbb::enumerable_thread_specific<Grid> part([&] { return Grid(g.origin, g.cell, g.resolution); });
+    tbb::parallel_for(size_t(0), spans.size(), [&](size_t k) { voxelize_span(part.local(), spans[k]); });
+    for (const Grid& p : part) g.merge(p);
   }
   for (size_t i = 0; i < bp.instances.size(); ++i) {
     const Effective& e = inst_eff[i];

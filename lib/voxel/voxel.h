@@ -67,6 +67,8 @@ class Grid {
   void mark_box(const Vec3d& lo, const Vec3d& hi);
   // Every cell (x, y, z) with first[k] <= its k-th index <= last[k] (inside the grid, first <= last).
   void mark_cells(const int first[3], const int last[3]);
+  // Sets every cell set in `other`, a grid of the same origin, cell and resolution.
+  void merge(const Grid& other);
 
  private:
   size_t brick_index(uint32_t bx, uint32_t by, uint32_t bz) const {

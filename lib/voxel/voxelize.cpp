@@ -6,6 +6,7 @@
 #include <limits>
 #include <utility>
 
+#include "core/error.h"
 #include "voxel/voxel.h"
 #include "voxel/voxelize_rows.h"
 
@@ -37,6 +38,18 @@ uint64_t Grid::count() const {
     n += (b * 0x0101010101010101ull) >> 56;
   }
   return n;
+}
+
+void Grid::merge(const Grid& other) {
+  if (other.resolution != resolution || other.brick_.size() != brick_.size())
+    throw Error(ExitCode::kInternal, "Grid::merge: grids of different resolutions");
+  for (size_t i = 0; i < other.brick_.size(); ++i) {
+    if (!other.brick_[i]) continue;
+    if (!brick_[i]) allocate_brick(brick_[i]);
+    uint64_t* dst = store_.data() + size_t(brick_[i] - 1) * brick_blocks_;
+    const uint64_t* src = other.store_.data() + size_t(other.brick_[i] - 1) * brick_blocks_;
+    for (size_t b = 0; b < brick_blocks_; ++b) dst[b] |= src[b];
+  }
 }
 
 bool Grid::region_empty(uint32_t bx, uint32_t by, uint32_t bz, uint32_t size) const {
