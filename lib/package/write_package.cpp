@@ -405,7 +405,9 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   // disk while the voxels are made (FlightHelmet at 2 threads: its 2.8 MB point was written last and
   // the final fsync waited 6-9 ms for it).
   struct ProxySlot {
-    tbb::task_group voxelizing;
+    // Isolated: the task outlives the pipeline's filter (and its context) that starts it.
+    tbb::task_group_context context{tbb::task_group_context::isolated};
+    tbb::task_group voxelizing{context};
     std::atomic<bool> ready{false};
     voxel::PointProxy proxy;
     bool boxes = false;  // proxy unused: cull holds the point's instance BVH
