@@ -7,7 +7,6 @@
 #include <tbb/task_group.h>
 #include <tbb/task_arena.h>
 
-#include <chrono>
 #include <cmath>
 
 #include <atomic>
@@ -499,11 +498,9 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                    }
                                                    slot->boxes = false;  // root not a node: voxels after all
                                                    slot->voxelizing.run([&, slot, id] {  // runs past this filter: no local by reference
-                                                     const auto t0 = std::chrono::steady_clock::now();
                                                      slot->proxy =
                                                          voxel::voxelize_point(scene, plan, *mesh_proxies, records, plan.points[id], o.voxel);
-                                                     voxel_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                                                     std::chrono::steady_clock::now() - t0).count();
+                                                     voxel_ns += int64_t(slot->proxy.work_seconds * 1e9);
                                                      slot->ready.store(true, std::memory_order_release);
                                                    });
                                                  };

@@ -7,6 +7,8 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -180,6 +182,10 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
 
 PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
                           const fmt::InstanceRecord* records, const BatchingPoint& bp, const VoxelOptions& o) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
+  Clock::duration in_parallel{0};  // wall time of the span loop, replaced by its threads' summed time
+  std::atomic<int64_t> span_ns{0};
   PointProxy out;
   // Error terms first: they size the grid.
   std::vector<Effective> piece_eff(bp.pieces.size()), inst_eff(bp.instances.size());
@@ -264,7 +270,13 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
     voxelize_span(g, spans[0]);
   } else if (spans.size() > 1) {
     tbb::enumerable_thread_specific<Grid> part([&] { return Grid(g.origin, g.cell, g.resolution); });
-    tbb::parallel_for(size_t(0), spans.size(), [&](size_t k) { voxelize_span(part.local(), spans[k]); });
+    const Clock::time_point t0 = Clock::now();
+    tbb::parallel_for(size_t(0), spans.size(), [&](size_t k) {
+      const Clock::time_point s0 = Clock::now();
+      voxelize_span(part.local(), spans[k]);
+      span_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - s0).count();
+    });
+    in_parallel = Clock::now() - t0;
     for (const Grid& p : part) g.merge(p);
   }
   for (size_t i = 0; i < bp.instances.size(); ++i) {
@@ -284,6 +296,7 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
   out.set_cells = g.count();
   out.dag = build_dag(g);
   out.grid.root = out.dag.root;
+  out.work_seconds = std::chrono::duration<double>(Clock::now() - start - in_parallel).count() + double(span_ns.load()) * 1e-9;
   return out;
 }
 

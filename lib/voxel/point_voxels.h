@@ -48,6 +48,7 @@ struct PointProxy {
   fmt::DagGrid grid{};   // root is the LocalDag's until the pool remaps it
   LocalDag dag;
   uint64_t set_cells = 0;
+  double work_seconds = 0;  // thread time spent (its triangle spans may run on several threads at once)
 };
 
 // The float-rounding bound (SPEC §4.5): with u = 2^-24 and an instance whose world->local map is
