@@ -1,10 +1,14 @@
 // rtpack-bench as a tool: exit codes, the JSON records, and that the answers behind them were checked.
 // No timing is asserted (TESTING.md: timings never go in unit tests). Skipped when the tool is not built.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <cerrno>
+#include <cstring>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -372,6 +376,24 @@ TEST_F(ConvertBench, NoDagTimesTheConvertersNoDagPackage) {
   EXPECT_EQ(slurp(without), slurp(tool_out)) << "rtpack-bench --convert --no-dag and rtpack-convert --no-dag differ";
   EXPECT_NE(b.err.find("no culling DAGs (--no-dag)"), std::string::npos) << b.err;
   EXPECT_EQ(run(q(scene) + " --no-dag").code, 1);  // needs --convert
+}
+
+// Each repetition converts into a new file (the last one's package is removed untimed), but an output
+// that is a character device is written in place and never unlinked: a device node made here (root
+// only) stands for /dev/null, which a removal run as root would delete.
+TEST_F(ConvertBench, RepetitionsNeverUnlinkADeviceOutput) {
+  const fs::path null_dev = dir / "null";
+  if (::mknod(null_dev.c_str(), S_IFCHR | 0666, ::makedev(1, 3)) != 0) GTEST_SKIP() << "mknod: " << std::strerror(errno);
+  const std::string gallery = q(kSamples + "/generated/gallery.glb");
+  const FullRun a = run_full(kTool, gallery + " --convert --reps 2 --threads 1 --convert-output " + q(null_dev.string()), dir);
+  EXPECT_EQ(a.code, 0) << a.err;
+  struct stat st{};
+  ASSERT_EQ(::lstat(null_dev.c_str(), &st), 0) << "the device node is gone";
+  EXPECT_TRUE(S_ISCHR(st.st_mode)) << "the device node was replaced";
+  const fs::path kept = dir / "kept.rtp";  // a regular file: each repetition's is replaced, the last one stays
+  const FullRun b = run_full(kTool, gallery + " --convert --reps 2 --threads 1 --convert-output " + q(kept.string()), dir);
+  EXPECT_EQ(b.code, 0) << b.err;
+  EXPECT_TRUE(fs::is_regular_file(kept));
 }
 
 TEST_F(ConvertBench, BadInputAndUsage) {

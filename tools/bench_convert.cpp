@@ -182,18 +182,20 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
       // Each repetition converts as into a new path: the previous repetition's package (ours, written
       // by the warm-up or the run before) is removed untimed, or the next run's atomic replacement would
       // pay for freeing its blocks (FlightHelmet: renameat 2.4 ms of a 54 ms convert at 2 threads).
-      if (r > 0) {
-        std::error_code ec;
-        fs::remove(output, ec);
-      }
+      // Only a regular file: an output that is a character device (/dev/null) is written in place and
+      // must never be unlinked.
+      if (std::error_code ec; r > 0 && fs::symlink_status(output, ec).type() == fs::file_type::regular) fs::remove(output, ec);
       ConvertRun run = convert_once(cfg, output, progress, label, r == cfg.reps ? &prepared : nullptr);
       if (r == 0) warnings = run.warnings;
       if (r > 0 && (!best || run.total() < best->total())) best = std::move(run);
     }
   });
   const double rss_convert = peak_rss_mib();
-  // The file's size on disk, as measured (not as reported).
-  const uint64_t package_bytes = fs::file_size(output);
+  // The file's size on disk, as measured (not as reported); an output that is a device (/dev/null)
+  // has no size: the bytes written to it.
+  std::error_code size_ec;
+  const bool regular_output = fs::is_regular_file(output, size_ec);
+  const uint64_t package_bytes = regular_output ? fs::file_size(output) : best->report.package_bytes;
 
   // Embree HIGH from the prepared scene: one warm-up, then the best of reps.
   double embree_s = std::numeric_limits<double>::infinity();
