@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <string>
 #include <vector>
 
 #include "core/background_sync.h"
@@ -65,6 +66,33 @@ TEST(OutputFileWriteback, CommittedFileHoldsEveryByte) {
     dropped.start_writeback();
   }
   EXPECT_FALSE(fs::exists(dir / "dropped.bin"));
+  fs::remove_all(dir);
+}
+
+// A background flush that fails (the RTP_TEST_FLUSH_FAILS hook: EIO) fails commit with an output error
+// naming the file, and nothing appears at the path: the kernel may report a failed flush to no later
+// fsync, so commit must not rely on its own.
+TEST(OutputFileWriteback, AFailedBackgroundFlushFailsCommit) {
+  const fs::path dir = fs::temp_directory_path() / ("rtp-output-sync-fail-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path path = dir / "out.bin";
+  ASSERT_EQ(::setenv("RTP_TEST_FLUSH_FAILS", "1", 1), 0);
+  const std::vector<uint8_t> data(1 << 20, 7);
+  try {
+    OutputFile f(path.string());
+    f.write_at(0, data.data(), data.size());
+    f.start_writeback();
+    f.set_size(data.size());
+    f.commit();
+    ADD_FAILURE() << "commit succeeded after a failed flush";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ExitCode::kOutput);
+    EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("Input/output error"), std::string::npos) << e.what();
+  }
+  ::unsetenv("RTP_TEST_FLUSH_FAILS");
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_TRUE(fs::is_empty(dir)) << "a temporary name was left behind";
   fs::remove_all(dir);
 }
 

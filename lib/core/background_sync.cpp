@@ -7,7 +7,7 @@
 
 namespace rtp {
 
-BackgroundSync::BackgroundSync(int fd) : fd_(fd), thread_([this] { run(); }) {}
+BackgroundSync::BackgroundSync(int fd, int fail_with) : fd_(fd), fail_with_(fail_with), thread_([this] { run(); }) {}
 
 BackgroundSync::~BackgroundSync() { finish(); }
 
@@ -33,19 +33,23 @@ void BackgroundSync::run() {
   std::unique_lock<std::mutex> lock(m_);
   for (;;) {
     cv_.wait(lock, [&] { return stop_ || requested_ != served_; });
-    if (requested_ == served_) return;  // stopped with nothing left to flush: the final fsync does the rest
+    if (requested_ == served_) return;  // stopped with nothing asked: the final fsync does the rest
     const uint64_t upto = requested_;
     lock.unlock();
     int e = 0;
-    while (::fdatasync(fd_) != 0) {
-      if (errno == EINTR) continue;
-      e = errno;
-      break;
+    if (fail_with_) {
+      e = fail_with_;  // test hook (BackgroundSync's constructor)
+    } else {
+      while (::fdatasync(fd_) != 0) {
+        if (errno == EINTR) continue;
+        e = errno;
+        break;
+      }
     }
     lock.lock();
     served_ = upto;
     if (e != 0 && error_ == 0) error_ = e;
-    if (stop_) return;  // the final fsync follows at once: no further round here
+    if (stop_) return;  // requests made during this flush: the final fsync follows at once
   }
 }
 

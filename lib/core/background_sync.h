@@ -13,7 +13,8 @@ namespace rtp {
 
 class BackgroundSync {
  public:
-  explicit BackgroundSync(int fd);
+  // fail_with != 0 (tests): every flush fails with that errno instead of calling fdatasync.
+  explicit BackgroundSync(int fd, int fail_with = 0);
   ~BackgroundSync();  // joins the thread (a flush in progress completes)
   BackgroundSync(const BackgroundSync&) = delete;
   BackgroundSync& operator=(const BackgroundSync&) = delete;
@@ -21,14 +22,13 @@ class BackgroundSync {
   // Asks for a flush of everything written so far; requests made during a flush are served by one
   // more flush after it. Never blocks on I/O.
   void request();
-  // Waits for the thread to finish its flushes and stops it. Returns the errno of the first failed
-  // fdatasync, 0 if none failed: the caller must report it (after a failed fdatasync the kernel may
-  // report the error to no later fsync).
+  // Stops the thread once the requests made so far are served (one flush serves them all). Returns the errno of the first failed fdatasync, 0 if none failed: the caller must
+  // report it (after a failed fdatasync the kernel may report the error to no later fsync).
   int finish();
 
  private:
   void run();
-  int fd_;
+  int fd_, fail_with_;
   std::mutex m_;
   std::condition_variable cv_;
   uint64_t requested_ = 0, served_ = 0;

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <system_error>
 
 #include "core/background_sync.h"
 #include "core/error.h"
@@ -181,8 +182,18 @@ void OutputFile::write_at(uint64_t offset, const void* data, size_t size) {
 }
 
 void OutputFile::start_writeback() {
-  if (device_ || fd_ < 0) return;
-  if (!sync_) sync_ = std::make_unique<BackgroundSync>(fd_);
+  if (device_ || fd_ < 0 || no_sync_thread_) return;
+  if (!sync_) {
+    // Test hook RTP_TEST_FLUSH_FAILS=1: the background flushes fail with EIO.
+    const char* fails = std::getenv("RTP_TEST_FLUSH_FAILS");
+    const int fail_with = fails && *fails && std::strcmp(fails, "0") != 0 ? EIO : 0;
+    try {
+      sync_ = std::make_unique<BackgroundSync>(fd_, fail_with);
+    } catch (const std::system_error&) {  // no thread to be had: commit's fsync does it all
+      no_sync_thread_ = true;
+      return;
+    }
+  }
   sync_->request();
 }
 

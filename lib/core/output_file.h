@@ -12,7 +12,8 @@
 //
 // Test hooks (environment): RTP_TEST_NO_O_TMPFILE=1 forces the named-temporary fallback;
 // RTP_TEST_HOLD_OUTPUT=FILE makes commit() create FILE and wait up to 60 s before linking, so a
-// test can signal a process whose output is fully written but not yet in place.
+// test can signal a process whose output is fully written but not yet in place;
+// RTP_TEST_FLUSH_FAILS=1 makes start_writeback's background flushes fail with EIO.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -54,6 +55,7 @@ class OutputFile {
   int fd_ = -1, dir_fd_ = -1;
   bool device_ = false, committed_ = false;
   std::unique_ptr<BackgroundSync> sync_;  // started by the first start_writeback
+  bool no_sync_thread_ = false;           // the thread could not be started: commit's fsync does it all
 };
 
 // The whole of `size` bytes to `path` through an OutputFile. Throws Error(kOutput).

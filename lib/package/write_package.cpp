@@ -373,8 +373,8 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   for (uint64_t k = 0; k < n_seg; ++k) total += work_of(ChunkKind::kMeshSegment, k);
   for (uint64_t k = 0; k < n_pts; ++k) total += work_of(ChunkKind::kBatchingPoint, k);
   uint64_t next = 0, written = 0;
-  // Culling proxies (Molenaar 2019 §4.2): voxelized with each point's chunk in the parallel stage,
-  // joined to the one shared pool in point order in the serial stage (deterministic bytes).
+  // Culling proxies (Molenaar 2019 §4.2): voxelized beside each point's zstd (ProxySlot below), joined to
+  // the one shared pool in point order (deterministic bytes) by the serial stage or after the pipeline.
   std::unique_ptr<voxel::MeshProxies> mesh_proxies;
   if (o.dag) mesh_proxies = std::make_unique<voxel::MeshProxies>(scene, plan);
   std::vector<fmt::DagGrid> grids(o.dag ? n_pts : 0);
@@ -498,8 +498,13 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
                                                    }
                                                    slot->boxes = false;  // root not a node: voxels after all
                                                    slot->voxelizing.run([&, slot, id] {  // runs past this filter: no local by reference
-                                                     slot->proxy =
-                                                         voxel::voxelize_point(scene, plan, *mesh_proxies, records, plan.points[id], o.voxel);
+                                                     try {
+                                                       slot->proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records,
+                                                                                           plan.points[id], o.voxel);
+                                                     } catch (...) {  // ready too: the serial stage's wait rethrows at once
+                                                       slot->ready.store(true, std::memory_order_release);
+                                                       throw;
+                                                     }
                                                      voxel_ns += int64_t(slot->proxy.work_seconds * 1e9);
                                                      slot->ready.store(true, std::memory_order_release);
                                                    });

@@ -266,9 +266,9 @@ PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxie
         voxelize_triangle(into, a, b, c, m);
     }
   };
-  if (spans.size() == 1) {
-    voxelize_span(g, spans[0]);
-  } else if (spans.size() > 1) {
+  if (bp.unique_triangles <= kSpanTriangles) {  // one unit of work (however many pieces): no grid per thread
+    for (const Span& sp : spans) voxelize_span(g, sp);
+  } else {
     tbb::enumerable_thread_specific<Grid> part([&] { return Grid(g.origin, g.cell, g.resolution); });
     const Clock::time_point t0 = Clock::now();
     tbb::parallel_for(size_t(0), spans.size(), [&](size_t k) {
