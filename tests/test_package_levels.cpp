@@ -28,13 +28,13 @@ TEST(PackageLevels, SourceMapAtLevelThreeUnderLevelsOneAndTwo) {
   struct Case {
     int asked, source_map, metadata;
   };
-  for (const Case c : {Case{1, 3, 1}, Case{2, 3, 2}, Case{5, 5, 5}, Case{-1, -1, -1}}) {
+  for (const Case& c : {Case{1, 3, 1}, Case{2, 3, 2}, Case{5, 5, 5}, Case{-1, -1, -1}}) {
     ConvertOptions cv;
     cv.zstd_level = c.asked;
     const fs::path path = dir / ("level" + std::to_string(c.asked) + ".rtp");
     write_package(scene, plan, path.string(), cv);
     const PackageReader reader(path.string());
-    for (const auto [kind, expect] : {std::pair{fmt::ChunkKind::kSourceMap, c.source_map}, std::pair{fmt::ChunkKind::kMetadata, c.metadata}}) {
+    for (const auto& [kind, expect] : {std::pair{fmt::ChunkKind::kSourceMap, c.source_map}, std::pair{fmt::ChunkKind::kMetadata, c.metadata}}) {
       const int64_t i = reader.find(kind, 0);
       ASSERT_GE(i, 0);
       const fmt::TocEntry& e = reader.toc()[size_t(i)];
