@@ -413,14 +413,23 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   struct ProxySlot {
     // Isolated: the task outlives the pipeline's filter (and its context) that starts it.
     tbb::task_group_context context{tbb::task_group_context::isolated};
-    tbb::task_group voxelizing{context};
     std::atomic<bool> ready{false};
-    voxel::PointProxy proxy;
-    bool boxes = false;  // proxy unused: cull holds the point's instance BVH
+    voxel::PointProxy proxy;  // written by the task
+    bool boxes = false;       // proxy unused: cull holds the point's instance BVH
     std::vector<fmt::CullNode<W>> cull;
+    tbb::task_group voxelizing{context};
+    // On an error (the pipeline unwinding) the task may still run: it must end before `proxy` goes (an
+    // ASan run caught a convert refused for its zstd minimum match whose task wrote into a destroyed
+    // proxy). Its own error is moot then: the first one is on its way out.
+    ~ProxySlot() {
+      try {
+        voxelizing.wait();
+      } catch (...) {
+      }
+    }
   };
-  // Declared after everything the voxelizing tasks read: on an error, each slot's task_group waits for
-  // its task as the slots are destroyed, before those go.
+  // Declared after everything the voxelizing tasks read: on an error, each slot waits for its task as
+  // the slots are destroyed, before those go.
   std::vector<std::unique_ptr<ProxySlot>> slots(o.dag ? n_pts : 0);
   struct Packed {
     Job job;
