@@ -22,8 +22,9 @@ class BackgroundSync {
   // Asks for a flush of everything written so far; requests made during a flush are served by one
   // more flush after it. Never blocks on I/O.
   void request();
-  // Stops the thread once the requests made so far are served (one flush serves them all). Returns the errno of the first failed fdatasync, 0 if none failed: the caller must
-  // report it (after a failed fdatasync the kernel may report the error to no later fsync).
+  // Stops the thread once the requests made so far are served (one flush serves them all). Returns the
+  // errno of the first failed fdatasync, 0 if none failed: the caller must report it (after a failed
+  // fdatasync the kernel may report the error to no later fsync).
   int finish();
 
  private:
