@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
+#include "core/math.h"
 #include "reader/camera.h"
 #include "reader/check_chunks.h"
 #include "reader/chunk_io.h"

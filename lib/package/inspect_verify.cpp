@@ -6,8 +6,9 @@
 #include <set>
 #include <string>
 
-#include "reader/check_chunks.h"
+#include "core/math.h"
 #include "package/inspect.h"
+#include "reader/check_chunks.h"
 
 namespace rtp::inspect_detail {
 namespace {
