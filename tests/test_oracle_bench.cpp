@@ -177,6 +177,41 @@ TEST_F(OracleBench, OutOfCoreRecordsAreBestOfRepsAndChecked) {
   EXPECT_EQ(runs.size(), 4u);
 }
 
+// --hot-rays N times each kind's first N rays over and over (the cost in instructions, data cached): the
+// records say so, and the timed and checked rays are really only N distinct ones.
+TEST_F(OracleBench, HotRaysRepeatTheFirstRays) {
+  const std::string suzanne = q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 300 --reps 1 --threads 1 ";
+  const ToolRun hot = run(suzanne + "--kinds random,shadow --hot-rays 7 --json");
+  ASSERT_EQ(hot.code, 0) << hot.out;
+  const ToolRun cold = run(suzanne + "--kinds random,shadow --json");
+  ASSERT_EQ(cold.code, 0) << cold.out;
+  for (const ToolRun* r : {&hot, &cold}) {
+    const json j = json::parse(r->out);
+    ASSERT_EQ(j.size(), 2u);
+    for (const json& rec : j) {
+      EXPECT_EQ(rec["rays"], 300);
+      EXPECT_EQ(rec["failures"], 0);
+      EXPECT_EQ(rec["agree"].get<uint64_t>() + rec["edge_ties"].get<uint64_t>() + rec["precision_ties"].get<uint64_t>() +
+                    rec["skipped"].get<uint64_t>() + rec["embree_errors"].get<uint64_t>(),
+                300u);
+      if (r == &hot) {
+        EXPECT_EQ(rec["hot_rays"], 7);
+        EXPECT_GE(rec["distinct_rays"].get<uint64_t>(), 1u);
+        EXPECT_LE(rec["distinct_rays"].get<uint64_t>(), 7u) << rec.dump();
+      } else {
+        EXPECT_EQ(rec["hot_rays"], 0);
+        EXPECT_GT(rec["distinct_rays"].get<uint64_t>(), 250u) << rec.dump();
+      }
+    }
+  }
+  const ToolRun table = run(suzanne + "--kinds random --hot-rays 7");
+  ASSERT_EQ(table.code, 0) << table.out;
+  EXPECT_NE(table.out.find("hot rays: each kind's first 7 rays repeated"), std::string::npos) << table.out;
+  EXPECT_EQ(run(suzanne + "--hot-rays 301").code, 1);
+  EXPECT_EQ(run(suzanne + "--hot-rays 0").code, 1);
+  EXPECT_EQ(run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --convert --hot-rays 4").code, 1);
+}
+
 TEST_F(OracleBench, DefaultsAreTheQuickRun) {
   const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --json");
   ASSERT_EQ(r.code, 0) << r.out;

@@ -21,6 +21,7 @@ struct KindData {
   RayCoherence coherence = RayCoherence::kIncoherent;  // how Embree is timed on these rays
   RayGenInfo info;
   uint64_t embree_timed_failures = 0;  // timed Embree answers (packets for primary) vs the stream reference
+  size_t distinct_rays = 0;            // rays that differ in some byte (fewer than rays.size() with --hot-rays)
 };
 
 struct Agreement {

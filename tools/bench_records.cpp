@@ -22,7 +22,7 @@ void print_row(FILE* o, const Record& r) {
 }
 
 nlohmann::json trace_record_json(const Record& r, const KindData& k, const std::string& scene_path, Isa isa,
-                                 const std::string& cpu) {
+                                 const std::string& cpu, size_t hot_rays) {
   return {{"type", "trace"},
           {"scene", utf8_display(scene_path)},
           {"kind", ray_kind_name(r.kind)},
@@ -34,6 +34,8 @@ nlohmann::json trace_record_json(const Record& r, const KindData& k, const std::
           {"isa", isa_name(isa)},
           {"threads", r.threads},
           {"rays", k.rays.size()},
+          {"hot_rays", hot_rays},
+          {"distinct_rays", k.distinct_rays},
           {"rtpack_mrays", r.rtpack_mrays},
           {"embree_mrays", r.embree_mrays},
           {"ratio", r.rtpack_mrays / r.embree_mrays},

@@ -38,8 +38,9 @@ struct BuildRecord {
 // The table row of a record, printed as its configuration finishes.
 void print_row(FILE* o, const Record& r);
 
+// hot_rays: --hot-rays (0: every ray distinct).
 nlohmann::json trace_record_json(const Record& r, const KindData& k, const std::string& scene_path, Isa isa,
-                                 const std::string& cpu);
+                                 const std::string& cpu, size_t hot_rays);
 nlohmann::json build_record_json(const BuildRecord& b, const std::string& scene_path, const std::string& cpu);
 nlohmann::json sah_record_json(const BvhStatsRow& r, const std::string& scene_path);
 

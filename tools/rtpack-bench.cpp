@@ -19,10 +19,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <limits>
@@ -92,6 +94,8 @@ struct Config {
   // Primary rays are timed as packets of this many consecutive rays (Wu 2016; 0 = single rays), as
   // Embree's are timed in its 16-ray packets.
   uint32_t primary_packet = 16;
+  // --hot-rays N: each kind's first N rays, repeated in order up to `rays` (0: every ray its own).
+  size_t hot_rays = 0;
   bool json = false;
   bool build_stats = false;
   size_t steps = 0, step = 0;  // timed configurations, for the progress line
@@ -113,6 +117,15 @@ std::vector<std::string> split_list(const std::string& s) {
   while (std::getline(ss, item, ','))
     if (!item.empty()) out.push_back(item);
   return out;
+}
+
+// Rays that differ in some byte.
+size_t distinct_rays(const std::vector<fmt::Ray>& rays) {
+  std::vector<std::array<uint32_t, 8>> keys(rays.size());
+  static_assert(sizeof(fmt::Ray) == sizeof(std::array<uint32_t, 8>));
+  for (size_t i = 0; i < rays.size(); ++i) std::memcpy(keys[i].data(), &rays[i], sizeof(fmt::Ray));
+  std::sort(keys.begin(), keys.end());
+  return size_t(std::unique(keys.begin(), keys.end()) - keys.begin());
 }
 
 template <int W>
@@ -259,6 +272,12 @@ int run(Config& cfg) {
     gen.seed = cfg.seed;
     gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { embree->closest(r, h, n); };
     k.rays = generate_rays(scene, kind, cfg.rays, gen, &k.info);
+    // --hot-rays: the same few rays over and over, so their nodes and leaves stay in cache and the branch
+    // predictor learns their walks: what the tracers cost in instructions, without the cache misses and
+    // mispredictions of distinct rays (the default run has both).
+    if (cfg.hot_rays)
+      for (size_t i = cfg.hot_rays; i < k.rays.size(); ++i) k.rays[i] = k.rays[i % cfg.hot_rays];
+    k.distinct_rays = distinct_rays(k.rays);
     const size_t n = k.rays.size();
     k.ref_hits.resize(n);
     embree->closest(k.rays.data(), k.ref_hits.data(), n);
@@ -293,6 +312,9 @@ int run(Config& cfg) {
                scene.instances.size(), load_s);
   std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n", cpu.c_str(),
                isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
+  if (cfg.hot_rays)
+    std::fprintf(o, "hot rays: each kind's first %zu rays repeated (cached data, learnt branches: the cost in instructions)\n",
+                 cfg.hot_rays);
   for (const KindData& k : kinds) {
     if (k.info.fallback)
       std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
@@ -342,7 +364,7 @@ int run(Config& cfg) {
       const KindData* k = nullptr;
       for (const KindData& x : kinds)
         if (x.kind == r.kind) k = &x;
-      out.push_back(trace_record_json(r, *k, cfg.scene_path, cfg.isa, cpu));
+      out.push_back(trace_record_json(r, *k, cfg.scene_path, cfg.isa, cpu, cfg.hot_rays));
     }
     for (const BuildRecord& b : builds) out.push_back(build_record_json(b, cfg.scene_path, cpu));
     for (const BvhStatsRow& r : sah_rows) out.push_back(sah_record_json(r, cfg.scene_path));
@@ -404,6 +426,11 @@ int main(int argc, char** argv) {
                  "rays per packet for primary rays: 4, 8, 16, or 0 for single rays (default 16; Embree's are timed in "
                  "16-ray packets)")
       ->check(CLI::IsMember({0, 4, 8, 16}));
+  auto* hot_opt = app.add_option("--hot-rays", cfg.hot_rays,
+                                 "time each kind's first N rays repeated up to --rays: their data stays in cache and "
+                                 "their branches are learnt, so the run shows the cost in instructions alone (beside a "
+                                 "default run, what cache misses and mispredictions cost)")
+                      ->check(CLI::Range(size_t(1), size_t(1) << 30));
   app.add_flag("--json", cfg.json, "print the records as a JSON array on stdout (the table goes to stderr)");
   auto* build_stats =
       app.add_flag("--build-stats", cfg.build_stats, "also time BVH builds against Embree HIGH and print lib/bvh's SAH table");
@@ -435,20 +462,22 @@ int main(int argc, char** argv) {
   for (const char* trace_only : {"--rays", "--kinds", "--width", "--order", "--isa", "--seed"})
     convert_flag->excludes(app.get_option(trace_only));
   convert_flag->excludes(build_stats);
+  convert_flag->excludes(hot_opt);
   convert_flag->excludes(all_flag);
   bench::BudgetBenchConfig budget;
   CLI::Option* ooc_opt = bench::add_budget_options(app, budget);
-  ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
+  ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(hot_opt);
   bench::DagBenchConfig dag;
   CLI::Option* dag_opt = bench::add_dag_options(app, dag);
-  dag_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag);
+  dag_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(hot_opt);
   bench::MultiHitBenchConfig multi;
   bench::add_multi_hit_options(app, multi)
-      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt);
+      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt)
+      ->excludes(hot_opt);
   bench::PacketBenchConfig packets;
   bench::add_packet_options(app, packets)
       ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt)
-      ->excludes("--multi-hit");
+      ->excludes("--multi-hit")->excludes(hot_opt);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -468,6 +497,8 @@ int main(int argc, char** argv) {
     if (std::find(cfg.kinds.begin(), cfg.kinds.end(), *kind) == cfg.kinds.end()) cfg.kinds.push_back(*kind);
   }
   if (cfg.kinds.empty()) return usage("--kinds is empty");
+  if (cfg.hot_rays > cfg.rays)
+    return usage("--hot-rays " + std::to_string(cfg.hot_rays) + " is more than --rays " + std::to_string(cfg.rays));
   if (width == "all") cfg.widths = {4, 8, 16};
   else if (width == "4" || width == "8" || width == "16") cfg.widths = {std::stoi(width)};
   else return usage("--width must be 4, 8, 16 or all, not '" + width + "'");
