@@ -22,6 +22,7 @@ struct ScalarKernels {
     return ordered_mask_scalar<W>(mask, order);
   }
   static constexpr bool kPushOrdered8 = false;  // the walk's loop pushes the children
+  static constexpr bool kPushOrdered16 = false;
   template <int B>
   static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_scalar<B, false>(b, r, tfar, out);

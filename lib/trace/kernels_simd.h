@@ -38,6 +38,13 @@ struct SimdKernels {
                                                    uint32_t rest) {
     rtp::RTP_ISA_NS::push_ordered8_refs(dst, child, order, rest);
   }
+  // W = 16 walks push with one compress where the 16-lane vector has one (AVX-512: Push16).
+  static constexpr bool kPushOrdered16 = !std::is_void_v<typename Vec<16>::Push>;
+  template <class P = typename Vec<16>::Push>
+  RTP_KERNEL_INLINE static void push_ordered16(void* dst, const uint32_t* child, const float* dist,
+                                               const uint8_t* order, uint32_t rest) {
+    P::pairs(dst, child, dist, order, rest);
+  }
   template <int B>
   RTP_KERNEL_INLINE static uint32_t block(const fmt::LeafBlock<B>& b, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
     return triangle_test_simd<Vec<B>, B, false>(b, r, tfar, out);

@@ -21,6 +21,7 @@ inline M4 operator|(M4 a, M4 b) { return {_mm_or_ps(a.v, b.v)}; }
 
 struct F4 {
   using Mask = M4;
+  using Push = void;
   static constexpr int kLanes = 4;
   __m128 v;
   static F4 load(const float* p) { return {_mm_loadu_ps(p)}; }
@@ -59,6 +60,7 @@ inline M8 operator|(M8 a, M8 b) { return {_mm256_or_ps(a.v, b.v)}; }
 
 struct F8 {
   using Mask = M8;
+  using Push = void;  // no one-instruction compress: W = 16 walks push in a loop
   static constexpr int kLanes = 8;
   __m256 v;
   static F8 load(const float* p) { return {_mm256_loadu_ps(p)}; }

@@ -25,7 +25,7 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
   using Entry = std::conditional_t<kFixedFar, uint32_t, Pair>;
   // Each inner level adds at most W - 1 entries (the nearest child is not pushed).
   constexpr int kCapacity = (W - 1) * detail::kMaxDepth + 1;
-  Entry stack[kCapacity + 8];  // push_ordered8 writes 8 entries, the pushed ones first
+  Entry stack[kCapacity + W];  // push_ordered8/16 write W entries, the pushed ones first
   int sp = 0;
   alignas(64) float dist[W];
   const typename K::template NodeRay<W> node_ray = K::template node_ray<W>(ray);
@@ -53,6 +53,9 @@ RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t
             K::push_ordered8_refs(stack + sp, node.child, order, om);
           else
             K::push_ordered8(stack + sp, node.child, dist, order, om);
+          sp += bit_count(om);
+        } else if constexpr (W == 16 && K::kPushOrdered16 && !kFixedFar) {
+          K::push_ordered16(stack + sp, node.child, dist, order, om);
           sp += bit_count(om);
         } else {
           while (om) {
