@@ -21,7 +21,6 @@ inline M4 operator|(M4 a, M4 b) { return {_mm_or_ps(a.v, b.v)}; }
 
 struct F4 {
   using Mask = M4;
-  using Push = void;
   static constexpr int kLanes = 4;
   __m128 v;
   static F4 load(const float* p) { return {_mm_loadu_ps(p)}; }

@@ -58,16 +58,14 @@ inline float hmax(F16 a) { return hmax(F8{_mm256_max_ps(lower_half(a.v), upper_h
 // (Any-hit walks, whose stack keeps references only, push in the loop: a compress there measured the same.)
 struct Push16 {
   // (The all-ones maskz forms: GCC 12's unmasked ones read an "undefined" register, see vmin.)
-  // Node lanes of the marked positions, near to far, in lanes 0..k-1 (k = popcount(rest)).
-  static __m512i packed(const int32_t* v, const uint8_t* order, uint32_t rest) {
+  static void pairs(void* dst, const uint32_t* child, const float* dist, const uint8_t* order, uint32_t rest) {
+    // The node lane of each octant position, then the marked positions' children and distances, near to
+    // far, in lanes 0..k-1 (k = popcount(rest)).
     const __m128i ord = _mm_loadu_si128(reinterpret_cast<const __m128i*>(order));
     const __m512i lanes = _mm512_and_si512(_mm512_maskz_cvtepu8_epi32(0xFFFF, ord), _mm512_set1_epi32(15));
-    const __m512i by_position = _mm512_maskz_permutexvar_epi32(0xFFFF, lanes, _mm512_loadu_si512(v));
-    return _mm512_maskz_compress_epi32(static_cast<__mmask16>(rest), by_position);
-  }
-  static void pairs(void* dst, const uint32_t* child, const float* dist, const uint8_t* order, uint32_t rest) {
-    const __m512i refs = packed(reinterpret_cast<const int32_t*>(child), order, rest);
-    const __m512i ds = packed(reinterpret_cast<const int32_t*>(dist), order, rest);
+    const __mmask16 m = static_cast<__mmask16>(rest);
+    const __m512i refs = _mm512_maskz_compress_epi32(m, _mm512_maskz_permutexvar_epi32(0xFFFF, lanes, _mm512_loadu_si512(child)));
+    const __m512i ds = _mm512_maskz_compress_epi32(m, _mm512_maskz_permutexvar_epi32(0xFFFF, lanes, _mm512_loadu_si512(dist)));
     // Pair j (j < k) is (refs[k-1-j], ds[k-1-j]): one two-source permutation per 8 pairs reverses and
     // interleaves (index k-1-j picks refs, 16 + k-1-j picks ds; lanes past k get garbage).
     const __m512i last = _mm512_set1_epi32(static_cast<int>(__builtin_popcount(rest)) - 1);
