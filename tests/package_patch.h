@@ -12,7 +12,8 @@
 
 #include "formats/chunk.h"
 #include "formats/package.h"
-#include "package/package.h"
+#include "package/writer.h"
+#include "reader/reader.h"
 
 namespace rtp::test {
 

@@ -30,10 +30,11 @@
 #include "gltf_builder.h"
 #include "mesh/prepare.h"
 #include "oracle/rays.h"
-#include "package/package.h"
+#include "package/writer.h"
+#include "reader/reader.h"
 #include "trace/package_tracer.h"
 #include "package/write_package.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 #include "scene/import.h"
 
 namespace rtp::test {

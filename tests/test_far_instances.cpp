@@ -21,7 +21,7 @@
 #include "oracle/embree_oracle.h"
 #include "oracle/reference.h"
 #include "package/convert.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "trace/package_tracer.h"
 #include "trace/trace.h"
 

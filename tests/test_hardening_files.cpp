@@ -16,7 +16,7 @@
 #include "formats/chunk.h"
 #include "formats/ray_file.h"
 #include "gltf_builder.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "tool_run.h"
 
 namespace rtp::test {

@@ -12,7 +12,7 @@
 
 #include "formats/bvh_layout.h"
 #include "formats/dag.h"
-#include "trace/dag_trace.h"
+#include "layout/dag_query.h"
 #include "voxel/instance_boxes.h"
 
 namespace rtp::test {

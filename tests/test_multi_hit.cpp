@@ -19,11 +19,11 @@
 #include "oracle/double_tests.h"
 #include "oracle/rays.h"
 #include "package/convert.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "tool_run.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
-#include "trace/ray_file.h"
+#include "reader/ray_file.h"
 #include "trace/trace.h"
 
 namespace rtp::test {

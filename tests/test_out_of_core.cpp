@@ -21,7 +21,7 @@
 #include "package/convert.h"
 #include "package_patch.h"
 #include "reader/chunk_cache.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 

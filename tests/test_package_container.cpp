@@ -10,8 +10,9 @@
 #include "core/aligned.h"
 #include "core/error.h"
 #include "gltf_builder.h"
-#include "package/package.h"
-#include "reader/chunk_io.h"
+#include "package/writer.h"
+#include "reader/reader.h"
+#include "layout/chunk_io.h"
 
 namespace rtp::test {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)

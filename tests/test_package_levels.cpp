@@ -8,9 +8,9 @@
 #include "formats/chunk.h"
 #include "gltf_builder.h"
 #include "mesh/prepare.h"
-#include "package/package.h"
+#include "package/writer.h"
 #include "package/write_package.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "scene/import.h"
 
 namespace rtp::test {

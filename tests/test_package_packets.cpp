@@ -20,7 +20,7 @@
 #include "package/write_package.h"
 #include "scene/import.h"
 #include "trace/package_tracer.h"
-#include "trace/tile_order.h"
+#include "reader/tile_order.h"
 #include "test_trace_util.h"
 
 namespace rtp::test {

@@ -12,7 +12,7 @@
 #include "gltf_builder.h"
 #include "reader/attribute_lookup.h"
 #include "reader/camera.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "rtpack/rtpack.h"
 #include "tool_run.h"
 #include "trace/package_tracer.h"

@@ -6,7 +6,7 @@
 #include <regex>
 
 #include "formats/package.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "gltf_builder.h"
 #include "tool_run.h"
 

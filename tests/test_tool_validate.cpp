@@ -18,8 +18,8 @@
 #include "package/convert.h"
 #include "package_patch.h"
 #include "reader/camera.h"
-#include "reader/chunk_io.h"
-#include "reader/container.h"
+#include "layout/chunk_io.h"
+#include "reader/reader.h"
 #include "trace/package_tracer.h"
 #include "tool_run.h"
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "test_trace_util.h"
-#include "trace/kernels.h"
+#include "trace/kernels/kernels.h"
 
 namespace rtp {
 namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)

@@ -13,7 +13,7 @@
 #include "formats/bvh_layout.h"
 #include "formats/ray_file.h"
 #include "scene/scene.h"
-#include "trace/scene_view.h"
+#include "layout/scene_view.h"
 #include "trace/trace.h"
 
 namespace rtp::trace_test {

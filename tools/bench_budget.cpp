@@ -20,10 +20,11 @@
 #include "core/output_file.h"
 #include "core/progress.h"
 #include "package/convert.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "tool_version.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
+#include "trace/tracer.h"
 
 namespace rtp::bench {
 namespace {
@@ -90,11 +91,8 @@ int run_budget_bench(BudgetBenchConfig cfg) {
   // The reference is the in-core trace as rtpack-trace runs it: no DAG culling (in core the DAG test costs
   // more than it saves; it is the out-of-core tracer's, where a culled point is a chunk not read).
   opt.cull = false;
-  auto trace_in_core = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& b) {
-      in_core->closest(r + b.begin(), h + b.begin(), b.size(), opt);
-    });
-  };
+  const std::unique_ptr<Tracer> in_core_t = in_core_tracer(*in_core);
+  auto trace_in_core = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { in_core_t->closest(r, h, n, opt); };
   const uint64_t on_demand = on_demand_bytes(reader), minimum = minimum_budget(reader);
   std::fprintf(out, "%s: %.1f MiB on demand (batching points and mesh segments), minimum budget %.1f MiB, %s, %d threads%s\n",
                cfg.package.c_str(), double(on_demand) / 1048576.0, double(minimum) / 1048576.0, isa_name(cfg.isa),
@@ -150,9 +148,11 @@ int run_budget_bench(BudgetBenchConfig cfg) {
     auto run_config = [&](Config& c) {
       PackageTraceOptions o = opt;
       o.cull = c.cull;
-      const auto ooc = open_out_of_core(reader, c.budget);
-      ooc->set_prefetch(cfg.prefetch);
-      const OutOfCoreStats st = ooc->closest(rays.data(), got.data(), rays.size(), o);
+      TracerConfig tc;
+      tc.memory_budget = c.budget;
+      tc.prefetch = cfg.prefetch;
+      const std::unique_ptr<Tracer> ooc = open_tracer(reader, tc);
+      const TracerStats st = ooc->closest(rays.data(), got.data(), rays.size(), o);
       if (std::memcmp(want.data(), got.data(), want.size() * sizeof(fmt::Hit)) != 0) {
         all_identical = c.same = false;
         std::fprintf(out, "%-8s %6.0f%% %6s HITS DIFFER FROM IN CORE\n", ray_kind_name(kind), c.pct, c.cull ? "on" : "off");

@@ -53,7 +53,8 @@
 #include "oracle/compare.h"
 #include "oracle/embree_oracle.h"
 #include "oracle/rays.h"
-#include "package/package.h"  // kMinZstdLevel
+#include "package/writer.h"
+#include "reader/reader.h"  // kMinZstdLevel
 #include "scene/import.h"
 #include "trace/trace.h"
 #include "malloc_policy.h"

@@ -13,8 +13,9 @@
 #include "core/error.h"
 #include "core/utf8.h"
 #include "core/progress.h"
-#include "package/inspect.h"
-#include "package/package.h"
+#include "inspect/inspect.h"
+#include "package/writer.h"
+#include "reader/reader.h"
 #include "tool_version.h"
 
 namespace {

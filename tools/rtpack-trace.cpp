@@ -20,15 +20,16 @@
 #include "core/output_file.h"
 #include "core/progress.h"
 #include "core/utf8.h"
-#include "package/package.h"
-#include "reader/chunk_io.h"
+#include "package/writer.h"
+#include "reader/reader.h"
+#include "layout/chunk_io.h"
 #include "reader/attribute_lookup.h"
 #include "reader/camera.h"
 #include "image/image.h"
 #include "trace/out_of_core.h"
-#include "trace/package_tracer.h"
-#include "trace/ray_file.h"
-#include "trace/tile_order.h"
+#include "trace/tracer.h"
+#include "reader/ray_file.h"
+#include "reader/tile_order.h"
 #include "cli_checks.h"
 #include "tool_version.h"
 
@@ -169,17 +170,13 @@ int main(int argc, char** argv) {
     }
     const rtp::PackageReader reader(package, direct);
     // In core (every chunk loaded first) or, with --memory-budget, the batched out-of-core tracer.
-    std::unique_ptr<rtp::PackageTracer> tracer;
-    std::unique_ptr<rtp::OutOfCoreTracer> ooc;
-    uint64_t budget = 0;
-    if (!budget_text.empty()) {
-      budget = rtp::parse_memory_budget(budget_text, rtp::on_demand_bytes(reader));
-      ooc = rtp::open_out_of_core(reader, budget);
-      ooc->set_prefetch(prefetch);
-      ooc->set_speculation(speculation);
-    } else {
-      tracer = rtp::load_package_in_core(reader);
-    }
+    rtp::TracerConfig tc;
+    if (!budget_text.empty()) tc.memory_budget = rtp::parse_memory_budget(budget_text, rtp::on_demand_bytes(reader));
+    tc.prefetch = prefetch;
+    tc.speculation = speculation;
+    const uint64_t budget = tc.memory_budget;
+    const std::unique_ptr<rtp::Tracer> tracer = rtp::open_tracer(reader, tc);
+    const bool ooc = tracer->out_of_core();
     std::vector<rtp::fmt::Ray> rays;
     std::string camera_text;
     if (!make_rays.empty()) {
@@ -195,7 +192,7 @@ int main(int argc, char** argv) {
     } else {
       rays = rtp::read_ray_file(rays_path);
     }
-    // Packets of an image: its rays traced in Hilbert-ordered 4x4 tiles (trace/tile_order.h), the hits put
+    // Packets of an image: its rays traced in Hilbert-ordered 4x4 tiles (reader/tile_order.h), the hits put
     // back in pixel order. Ray files are traced in their own order.
     std::vector<uint32_t> tile_order;
     if (render && packet) tile_order = rtp::hilbert_tile_order(img_w, img_h);
@@ -214,34 +211,18 @@ int main(int argc, char** argv) {
     std::vector<uint32_t> counts(multi ? rays.size() : 0);
     std::vector<uint8_t> occ(any ? rays.size() : 0);
     std::atomic<uint64_t> invalid{0}, visits{0}, culled{0}, packets{0}, packet_rays{0}, node_tests{0}, active_lanes{0};
-    rtp::OutOfCoreStats os;
     const auto t0 = std::chrono::steady_clock::now();
-    if (ooc) {
-      os = any     ? ooc->any(rays.data(), occ.data(), rays.size(), opt)
-           : multi ? ooc->multi(rays.data(), rays.size(), multi, hits.data(), counts.data(), opt)
-                   : ooc->closest(rays.data(), hits.data(), rays.size(), opt);
-      invalid = os.invalid_rays;
-      visits = os.point_visits;
-      culled = os.culled_visits;
-    } else {
-      // Blocks of 256 rays: a multiple of every packet size, so packets stay the runs the caller ordered.
-      constexpr size_t kBlock = 256;
-      std::vector<rtp::fmt::Hit> tiled_hits(tile_order.size());
-      rtp::fmt::Hit* out = tile_order.empty() ? hits.data() : tiled_hits.data();
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, (rays.size() + kBlock - 1) / kBlock), [&](const tbb::blocked_range<size_t>& br) {
-        const size_t begin = br.begin() * kBlock, end = std::min(rays.size(), br.end() * kBlock), n = end - begin;
-        const rtp::PackageTraceStats st =
-            any     ? tracer->any(traced.data() + begin, occ.data() + begin, n, opt)
-            : multi ? tracer->multi(traced.data() + begin, n, multi, hits.data() + begin * multi, counts.data() + begin, opt)
-                    : tracer->closest(traced.data() + begin, out + begin, n, opt);
-        invalid += st.invalid_rays;
-        visits += st.point_visits;
-        culled += st.culled_visits;
-        packets += st.packets, packet_rays += st.packet_rays;
-        node_tests += st.packet_node_tests, active_lanes += st.packet_active_lanes;
-      });
-      for (size_t k = 0; k < tile_order.size(); ++k) hits[tile_order[k]] = tiled_hits[k];
-    }
+    std::vector<rtp::fmt::Hit> tiled_hits(tile_order.size());
+    rtp::fmt::Hit* out = tile_order.empty() ? hits.data() : tiled_hits.data();
+    const rtp::TracerStats os = any     ? tracer->any(traced.data(), occ.data(), traced.size(), opt)
+                                : multi ? tracer->multi(traced.data(), traced.size(), multi, hits.data(), counts.data(), opt)
+                                        : tracer->closest(traced.data(), out, traced.size(), opt);
+    for (size_t k = 0; k < tile_order.size(); ++k) hits[tile_order[k]] = tiled_hits[k];
+    invalid = os.invalid_rays;
+    visits = os.point_visits;
+    culled = os.culled_visits;
+    packets = os.packets, packet_rays = os.packet_rays;
+    node_tests = os.packet_node_tests, active_lanes = os.packet_active_lanes;
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     // --make-camera-rays: the ray file is written now and put at its path after the hit file, so a trace or
     // an output that fails leaves neither (a complete ray file of a failed run was left behind).
@@ -316,7 +297,7 @@ int main(int argc, char** argv) {
     if (render)
       j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
-    const bool has_dags = ooc ? ooc->has_dags() : tracer->has_dags();
+    const bool has_dags = tracer->has_dags();
     const bool culling = opt.cull && has_dags;
     const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;
     j["culling"] = culling    ? "on"
@@ -327,7 +308,7 @@ int main(int argc, char** argv) {
     j["culled_visits"] = culled.load();
     j["cull_rate"] = rate;
     // The same keys for both paths: in core every chunk is loaded (and checked) before the first ray.
-    const rtp::PackageLoadStats ls = ooc ? rtp::PackageLoadStats{} : tracer->load_stats();
+    const rtp::PackageLoadStats ls = tracer->load_stats();
     j["mode"] = ooc ? "out of core" : "in core";
     j["memory_budget"] = ooc ? nlohmann::json(budget) : nlohmann::json(nullptr);
     j["rounds"] = ooc ? os.rounds : 0;

@@ -26,7 +26,7 @@
 #include "reader/camera.h"
 #include "reader/metadata.h"
 #include "trace/out_of_core.h"
-#include "trace/package_tracer.h"
+#include "trace/tracer.h"
 #include "cli_checks.h"
 #include "tool_version.h"
 
@@ -56,7 +56,7 @@ double unit(uint64_t seed, uint64_t i, int k) { return double(mix(seed * 0x10000
 
 // Rays from the package alone (no --source): primary from its camera, random through its bounds, shadow
 // rays from the in-core primary hits toward a light above the bounds.
-std::vector<Ray> package_rays(const rtp::PackageReader& reader, const rtp::PackageTracer& in_core, const std::string& kind,
+std::vector<Ray> package_rays(const rtp::PackageReader& reader, rtp::Tracer& in_core, const std::string& kind,
                               size_t n, uint64_t seed) {
   const auto& h = reader.header();
   double c[3], r = 0;
@@ -222,11 +222,13 @@ int main(int argc, char** argv) {
     const uint64_t on_demand = rtp::on_demand_bytes(reader), minimum = rtp::minimum_budget(reader);
     uint64_t budget = rtp::parse_memory_budget(budget_text, on_demand);
     if (app.count("--memory-budget") == 0) budget = std::max(budget, minimum);  // the default never refuses
-    const auto ooc = rtp::open_out_of_core(reader, budget);
+    rtp::TracerConfig tc;
+    tc.memory_budget = budget;
+    const std::unique_ptr<rtp::Tracer> ooc = rtp::open_tracer(reader, tc);
     if (!json) std::fprintf(stderr, "reference: %s\n", embree ? "Embree ROBUST on the source glTF" : "the in-core tracer");
     rtp::Scene scene;
     std::unique_ptr<rtp::EmbreeOracle> oracle;
-    std::unique_ptr<rtp::PackageTracer> in_core;
+    std::unique_ptr<rtp::Tracer> in_core;
     std::unique_ptr<rtp::ExactReference> exact;
     if (embree) {
       scene = source_scene(reader, source, allow);
@@ -243,7 +245,7 @@ int main(int argc, char** argv) {
                                          : "a double reference from the glTF's own values, instance by instance",
                      (unsigned long long)tris);
     } else {
-      in_core = rtp::load_package_in_core(reader);
+      in_core = rtp::open_tracer(reader);
     }
     rtp::PackageTraceOptions opt;
     opt.isa = rtp::detect_isa();
@@ -262,8 +264,8 @@ int main(int argc, char** argv) {
       }
       std::vector<Hit> got(rays.size()), ref(rays.size());
       std::vector<uint8_t> occ(rays.size());
-      const rtp::OutOfCoreStats a = ooc->closest(rays.data(), got.data(), rays.size(), opt);
-      const rtp::OutOfCoreStats b = ooc->any(rays.data(), occ.data(), rays.size(), opt);
+      const rtp::TracerStats a = ooc->closest(rays.data(), got.data(), rays.size(), opt);
+      const rtp::TracerStats b = ooc->any(rays.data(), occ.data(), rays.size(), opt);
       for (const rtp::OutOfCoreStats* s : {&a, &b}) {
         total.rays += s->rays;
         total.point_visits += s->point_visits;

@@ -18,7 +18,7 @@
 
 #include "formats/bvh_layout.h"
 #include "scene/scene.h"
-#include "trace/scene_view.h"
+#include "layout/scene_view.h"
 
 namespace rtp {
 

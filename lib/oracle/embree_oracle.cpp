@@ -18,7 +18,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
-#include "trace/trace.h"
+#include "layout/hit_order.h"
 
 namespace rtp {
 namespace {

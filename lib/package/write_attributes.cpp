@@ -5,7 +5,7 @@
 #include <string>
 
 #include "core/error.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 
 namespace rtp {
 

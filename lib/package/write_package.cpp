@@ -15,8 +15,8 @@
 
 #include "core/parallel.h"
 #include "formats/dag.h"
-#include "reader/chunk_io.h"
-#include "package/package.h"
+#include "layout/chunk_io.h"
+#include "package/writer.h"
 #include "package/write_attributes.h"
 #include "voxel/instance_boxes.h"
 

@@ -8,7 +8,8 @@
 #include <cstring>
 
 #include "core/error.h"
-#include "package/package.h"
+#include "layout/crc32c.h"
+#include "package/writer.h"
 
 namespace rtp {
 

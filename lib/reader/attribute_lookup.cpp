@@ -13,7 +13,7 @@
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
 #include "reader/check_chunks.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 
 namespace rtp {
 

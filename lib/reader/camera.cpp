@@ -9,7 +9,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 #include "reader/metadata.h"
 
 namespace rtp {

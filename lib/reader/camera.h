@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "formats/ray_file.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 
 namespace rtp {
 

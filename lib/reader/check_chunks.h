@@ -12,7 +12,7 @@
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
 #include "formats/top_level.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 
 namespace rtp {
 

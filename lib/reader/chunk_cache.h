@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "core/aligned.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 
 namespace rtp {
 

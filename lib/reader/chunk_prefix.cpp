@@ -12,7 +12,7 @@
 
 #include "core/error.h"
 #include "formats/chunk.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 
 namespace rtp {
 

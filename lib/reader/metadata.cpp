@@ -3,7 +3,7 @@
 
 #include "core/error.h"
 #include "core/json_checked.h"
-#include "reader/chunk_io.h"
+#include "layout/chunk_io.h"
 
 namespace rtp {
 

@@ -3,7 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "reader/container.h"
+#include "reader/reader.h"
 
 namespace rtp {
 

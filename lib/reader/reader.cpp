@@ -13,7 +13,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 
 namespace rtp {
 namespace {
@@ -25,28 +25,6 @@ std::string hex32(uint32_t v) {
 }
 
 }  // namespace
-
-const char* chunk_kind_name(uint32_t kind) {
-  switch (fmt::ChunkKind(kind)) {
-    case fmt::ChunkKind::kMetadata: return "metadata";
-    case fmt::ChunkKind::kTopLevelBvh: return "top-level BVH";
-    case fmt::ChunkKind::kBatchingPoints: return "batching-point descriptors";
-    case fmt::ChunkKind::kInstances: return "instance table";
-    case fmt::ChunkKind::kMeshes: return "mesh table";
-    case fmt::ChunkKind::kSourceMap: return "source map";
-    case fmt::ChunkKind::kDagPool: return "DAG pool";
-    case fmt::ChunkKind::kBatchingPoint: return "batching point";
-    case fmt::ChunkKind::kMeshSegment: return "mesh segment";
-    case fmt::ChunkKind::kSegmentAttributes: return "mesh segment attributes";
-    case fmt::ChunkKind::kPointAttributes: return "batching point attributes";
-  }
-  return "unknown kind";
-}
-
-std::string chunk_label(const fmt::TocEntry& e, size_t i) {
-  return std::string(chunk_kind_name(e.kind)) + " " + std::to_string(e.id) + " (chunk #" + std::to_string(i) +
-         " at offset " + std::to_string(e.offset) + ")";
-}
 
 PackageReader::PackageReader(const std::string& path, bool direct_io) : path_(path) {
   // A regular file only (a directory, FIFO or device gets a clear message; a FIFO never blocks).

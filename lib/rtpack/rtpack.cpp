@@ -2,12 +2,9 @@
 // tracer (lib/trace): internal errors become rtpack::Error, internal types never cross the header.
 #include "rtpack/rtpack.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <mutex>
@@ -17,10 +14,10 @@
 #include "formats/chunk.h"
 #include "reader/attribute_lookup.h"
 #include "reader/camera.h"
-#include "reader/chunk_io.h"
-#include "reader/container.h"
-#include "trace/package_tracer.h"
-#include "trace/tile_order.h"
+#include "layout/chunk_io.h"
+#include "reader/reader.h"
+#include "trace/tracer.h"
+#include "reader/tile_order.h"
 
 #ifndef RTP_VERSION
 #define RTP_VERSION "unknown"
@@ -73,7 +70,7 @@ const char* format_version() {
 struct Package::Impl {
   std::string path;
   std::unique_ptr<rtp::PackageReader> reader;
-  std::unique_ptr<rtp::PackageTracer> tracer;
+  std::unique_ptr<rtp::Tracer> tracer;  // in core (open_tracer without a budget): takes concurrent calls
   Info info;
   std::vector<BatchingPoint> points;
   std::vector<Mesh> meshes;
@@ -100,27 +97,13 @@ struct Package::Impl {
     return opt;
   }
 
-  // Splits [0, n) over TBB workers (or runs inline for threads == 1) in blocks of kBlock rays, summing
-  // what f(first, count) returns. kBlock is a multiple of every packet size: a task's rays start at a
-  // multiple of 16, so the packets are the caller's runs whatever the thread count.
-  static constexpr size_t kBlock = 256;
+  // Runs f (a whole-array tracer call, parallel inside) with `threads` TBB workers, or the caller's
+  // arena for threads <= 0.
   template <class F>
-  size_t parallel(size_t n, int threads, F&& f) const {
-    std::atomic<size_t> sum{0};
-    const size_t blocks = (n + kBlock - 1) / kBlock;
-    auto body = [&](const tbb::blocked_range<size_t>& r) {
-      const size_t first = r.begin() * kBlock, last = std::min(n, r.end() * kBlock);
-      sum += f(first, last - first);
-    };
-    if (threads == 1) {
-      if (n) body(tbb::blocked_range<size_t>(0, blocks));
-    } else if (threads > 1) {
-      tbb::task_arena arena(threads);
-      arena.execute([&] { tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), body); });
-    } else {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), body);
-    }
-    return sum.load();
+  static auto with_threads(int threads, F&& f) -> decltype(f()) {
+    if (threads <= 0) return f();
+    tbb::task_arena arena(threads);
+    return arena.execute(f);
   }
 };
 
@@ -136,7 +119,7 @@ Package Package::open(const std::string& path) {
     impl->reader = std::make_unique<rtp::PackageReader>(path);
     const rtp::PackageReader& r = *impl->reader;
     // Every chunk read, CRC-checked and structurally checked (reader/check_chunks.h) before any ray.
-    impl->tracer = rtp::load_package_in_core(r);
+    impl->tracer = rtp::open_tracer(r);
     const rtp::fmt::Header& h = r.header();
     Info& in = impl->info;
     in.format_major = h.version_major;
@@ -190,35 +173,26 @@ const std::vector<Mesh>& Package::meshes() const { return impl_->meshes; }
 
 namespace {
 
-// TraceStats summed over the tasks of one call.
-struct StatsSum {
-  std::atomic<uint64_t> rays{0}, invalid{0}, visits{0}, culled{0}, packets{0}, packet_rays{0}, node_tests{0}, lanes{0};
-  void add(const rtp::PackageTraceStats& st) {
-    rays += st.rays, invalid += st.invalid_rays, visits += st.point_visits, culled += st.culled_visits;
-    packets += st.packets, packet_rays += st.packet_rays, node_tests += st.packet_node_tests, lanes += st.packet_active_lanes;
-  }
-  void store(TraceStats* out) const {
-    if (!out) return;
-    *out = {rays.load(), invalid.load(), visits.load(), culled.load(), packets.load(), packet_rays.load(),
-            node_tests.load(), lanes.load()};
-  }
-};
+// The public TraceStats of one call.
+void store_stats(const rtp::PackageTraceStats& st, TraceStats* out) {
+  if (out)
+    *out = {st.rays, st.invalid_rays, st.point_visits, st.culled_visits, st.packets, st.packet_rays,
+            st.packet_node_tests, st.packet_active_lanes};
+}
 
 }  // namespace
 
 size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options, TraceStats* stats) const {
   const rtp::PackageTraceOptions opt = impl_->trace_options(options);
-  StatsSum sum;
+  rtp::TracerStats sum;
   const size_t n_hit = guarded(impl_->path, [&] {
-    return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
-      auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits + first);
-      sum.add(impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), h, n, opt));
-      size_t k = 0;
-      for (size_t i = 0; i < n; ++i) k += h[i].instance != rtp::fmt::Hit::kNone;
-      return k;
+    auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits);
+    sum = Impl::with_threads(options.threads, [&] {
+      return impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays), h, count, opt);
     });
+    return size_t(std::count_if(h, h + count, [](const rtp::fmt::Hit& x) { return x.instance != rtp::fmt::Hit::kNone; }));
   });
-  sum.store(stats);
+  store_stats(sum, stats);
   return n_hit;
 }
 
@@ -226,16 +200,14 @@ size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const
                          TraceStats* stats) const {
   rtp::PackageTraceOptions opt = impl_->trace_options(options);
   opt.packet = 0;  // any hits through the package go ray by ray
-  StatsSum sum;
+  rtp::TracerStats sum;
   const size_t n_occ = guarded(impl_->path, [&] {
-    return impl_->parallel(count, options.threads, [&](size_t first, size_t n) {
-      sum.add(impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays + first), occluded + first, n, opt));
-      size_t k = 0;
-      for (size_t i = 0; i < n; ++i) k += occluded[first + i];
-      return k;
+    sum = Impl::with_threads(options.threads, [&] {
+      return impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays), occluded, count, opt);
     });
+    return size_t(std::count_if(occluded, occluded + count, [](uint8_t o) { return o != 0; }));
   });
-  sum.store(stats);
+  store_stats(sum, stats);
   return n_occ;
 }
 

@@ -19,16 +19,19 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
-#include "reader/chunk_io.h"
-#include "trace/dag_trace.h"
+#include "layout/chunk_io.h"
+#include "layout/dag_query.h"
+#include "trace/batch_scheduler.h"
 #include "trace/top_level_walk.h"
 #include "trace/trace.h"
 
 namespace rtp {
 namespace {
 
-constexpr uint32_t kNone = 0xFFFFFFFFu;
-constexpr size_t kBlock = 64;  // rays traced together at one batching point (one kernel call)
+using batched::kBlock;
+using batched::kNone;
+using batched::RayLocks;
+using batched::Visit;
 std::string format_mib(uint64_t b) {
   char t[32];
   std::snprintf(t, sizeof t, "%.1f MiB", double(b) / 1048576.0);
@@ -235,261 +238,46 @@ class Batched final : public OutOfCoreTracer {
     }
   }
 
-  // A ray's visit to a batching point: which ray, the point's place in the ray's walk, where the ray
-  // enters it (the DAG's first set cell, or the point's box).
-  struct Visit {
-    uint32_t ray, walk;
-    float tstart;
-    uint32_t dag_tested = 0;  // 1: its point's DAG kept it (cull_small_queues)
-  };
-  // Striped spin locks over the rays: visits of one ray to several points of a round may be traced at
-  // once by different threads; each merges its answer under the ray's lock.
-  class RayLocks {
-   public:
-    struct Held {
-      std::atomic_flag* f;
-      ~Held() { f->clear(std::memory_order_release); }
-    };
-    Held hold(uint32_t ray) {
-      std::atomic_flag& f = flags_[ray % kStripes];
-      while (f.test_and_set(std::memory_order_acquire))
-        while (f.test(std::memory_order_relaxed)) std::this_thread::yield();
-      return {&f};
-    }
-
-   private:
-    static constexpr size_t kStripes = 4096;
-    std::array<std::atomic_flag, kStripes> flags_{};
-  };
-
-  // Speculative batching (an extension of Molenaar 2019 §4.1): a ray is queued at its next `depth` points
-  // at once, each traced with the tfar the ray had when queued, and the answers are merged by (t, walk
-  // order). A point's nearest hit below the tfar a one-by-one walk would have used there is the same
-  // under a larger tfar (pruning only drops farther work), and a hit at or beyond it loses the merge, so
-  // the answers are those of the one-by-one walk, while a ray no longer needs its earlier points traced
-  // before its later ones are queued: every point a round loads serves all its rays at once. Measured on
-  // unique-50m's bounce rays (10 % budget): 257 chunk loads one point at a time, 98 (each point once) here,
-  // for 3 % more point visits.
+  template <class, class, class, class>
+  friend class batched::Scheduler;
   template <class TraceBlock, class CurrentTfar, class Stopped>
   OutOfCoreStats run(const fmt::Ray* rays, size_t n, const PackageTraceOptions& o, uint32_t depth, TraceBlock&& trace_block,
                      CurrentTfar&& current_tfar, Stopped&& stopped) {
-    const auto t_total = Clock::now();
     if (n >= kNone) throw Error(ExitCode::kUsage, std::to_string(n) + " rays in one call: at most 2^32 - 2");
-    OutOfCoreStats st;
-    st.rays = n;
-    st.budget_bytes = cache_.budget();
-    st.fixed_bytes = res_.bytes();
-    const ChunkCacheStats cache_before = cache_.stats();
-    const bool cull = o.cull;
-    // Per ray: where its walk stands in the top level, the tfar its queued visits were traced with, how
-    // many of them are still to be traced, the walk index of its next point, whether its walk is over.
-    std::vector<TopPosition> pos(n);
-    std::vector<float> walk_tfar(n, 0.f);
-    std::vector<uint32_t> pending(n, 0), next_walk(n, 0);
-    std::vector<uint8_t> walk_over(n, 0);
-    auto locks = std::make_unique<RayLocks>();
-    std::vector<std::vector<Visit>> queue(res_.n_points);  // visits waiting at each batching point
-    using Moves = std::vector<std::pair<uint32_t, Visit>>;  // (point, visit)
-    tbb::enumerable_thread_specific<Moves> moves;
-    tbb::enumerable_thread_specific<PackageTraceStats> walk_stats;
-    // Queues ray i at its next points (up to `depth`), walking with its current tfar. The caller owns ray i
-    // (none of its visits is pending).
-    auto walk_ahead = [&](uint32_t i, Moves& m, PackageTraceStats& ws) {
-      const float tfar = current_tfar(i);
-      walk_tfar[i] = tfar;
-      uint32_t c = 0;
-      while (c < depth) {
-        float tstart = 0.f;
-        const uint32_t p = advance(rays[i], tfar, pos[i], tstart, false, ws);  // DAGs: cull_small_queues
-        if (p == kNone) {
-          walk_over[i] = 1;
-          break;
-        }
-        m.push_back({p, Visit{i, next_walk[i]++, tstart}});
-        ++c;
-      }
-      pending[i] = c;
+    batched::Scheduler<Batched, TraceBlock, CurrentTfar, Stopped> s(*this, rays, n, o.cull, depth, trace_block, current_tfar,
+                                                                    stopped);
+    return s.run();
+  }
+
+  // What the scheduler asks of the tracer (batch_scheduler.h).
+  uint32_t n_points() const { return uint32_t(res_.n_points); }
+  size_t toc_size() const { return r_.toc().size(); }
+  uint64_t fixed_bytes() const { return res_.bytes(); }
+  bool has_grids() const { return res_.grids != nullptr; }
+  bool dag_enter(uint32_t p, fmt::Ray& local) const { return voxel::dag_enter(res_.grids[p], res_.dag, local); }
+  uint32_t point_chunk(uint32_t p) const { return res_.layout.point_chunk[p]; }
+  // The TOC indices of point p's mesh segments, in the order the point names them.
+  struct SegmentChunks {
+    const Layout& l;
+    const std::vector<uint32_t>& segs;
+    struct It {
+      const Layout& l;
+      std::vector<uint32_t>::const_iterator i;
+      uint32_t operator*() const { return l.segment_chunk[*i]; }
+      It& operator++() { return ++i, *this; }
+      bool operator!=(const It& o) const { return i != o.i; }
     };
-    auto enqueue_moves = [&] {
-      uint64_t queued = 0;
-      for (Moves& m : moves) {
-        for (const auto& [p, v] : m) queue[p].push_back(v);
-        m.clear();
-      }
-      uint64_t ray_bytes = n * (sizeof(TopPosition) + sizeof(float) + 2 * sizeof(uint32_t) + 1) + sizeof(RayLocks);
-      for (const auto& q : queue) ray_bytes += q.capacity() * sizeof(Visit), queued += q.size();
-      for (const Moves& m : moves) ray_bytes += m.capacity() * sizeof(typename Moves::value_type);
-      st.peak_ray_bytes = std::max(st.peak_ray_bytes, ray_bytes);
-      return queued;
-    };
-    // Molenaar 2019 §4.2 culls a ray at a batching point by the point's DAG so that the point need not be
-    // loaded for it. A point with more than a kernel block of rays is loaded anyway (some ray will pass its
-    // DAG), and there the DAG walk costs more than the BVH traversal it saves (docs/culling), so only the
-    // rays of points with at most kBlock waiting rays, not resident, are tested: culled visits leave the
-    // queue, and a point whose rays are all culled is never loaded. Culling never changes a hit.
-    PackageTraceStats cull_stats;
-    uint64_t waiting = 0;
-    auto cull_small_queues = [&] {
-      if (!cull || !res_.grids) return;
-      Moves& m = moves.local();
-      for (bool again = true; again;) {
-        again = false;
-        for (uint32_t p = 0; p < res_.n_points; ++p) {
-          std::vector<Visit>& q = queue[p];
-          if (q.empty() || q.size() > kBlock || point_resident(p)) continue;
-          size_t kept = 0;
-          for (Visit v : q) {
-            if (v.dag_tested) {
-              q[kept++] = v;
-              continue;
-            }
-            fmt::Ray local = rays[v.ray];
-            local.tnear = v.tstart;
-            local.tfar = walk_tfar[v.ray];
-            if (voxel::dag_enter(res_.grids[p], res_.dag, local)) {
-              v.tstart = local.tnear;
-              v.dag_tested = 1;
-              q[kept++] = v;
-              continue;
-            }
-            ++cull_stats.culled_visits;
-            if (--pending[v.ray] == 0 && !walk_over[v.ray] && !stopped(v.ray)) walk_ahead(v.ray, m, cull_stats);
-          }
-          q.resize(kept);
-        }
-        if (!m.empty()) again = true;
-        waiting = enqueue_moves();
-      }
-    };
-    auto t0 = Clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& rg) {
-      Moves& m = moves.local();
-      PackageTraceStats& ws = walk_stats.local();
-      for (size_t i = rg.begin(); i != rg.end(); ++i) {
-        if (!ray_is_valid(rays[i])) {
-          ++ws.invalid_rays;
-          walk_over[i] = 1;
-          continue;
-        }
-        walk_ahead(uint32_t(i), m, ws);
-      }
-    });
-    waiting = enqueue_moves();
-    cull_small_queues();
-    st.walk_seconds += seconds_since(t0);
-    std::vector<uint32_t> order(res_.n_points);
-    std::vector<uint8_t> in_round(r_.toc().size(), 0);  // chunks of the round being chosen
-    std::vector<uint8_t> point_mark(res_.n_points, 0);   // points of the round being traced
-    while (waiting > 0) {
-      ++st.rounds;
-      // Molenaar 2019 §4.3: the points with the most waiting rays first, as many as fit in the budget.
-      std::iota(order.begin(), order.end(), 0u);
-      std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return queue[a].size() > queue[b].size(); });
-      std::vector<uint32_t> chosen, chunks;
-      uint64_t bytes = 0;
-      // With reading ahead, a quarter of the budget stays free for the next round's chunks.
-      const uint64_t round_cap = prefetch_ ? cache_.budget() - cache_.budget() / 4 : cache_.budget();
-      for (uint32_t p : order) {
-        if (queue[p].empty()) break;
-        uint64_t add = in_round[res_.layout.point_chunk[p]] ? 0 : cache_.cost(res_.layout.point_chunk[p]);
-        for (uint32_t s : res_.layout.point_segments[p]) {
-          const uint32_t c = res_.layout.segment_chunk[s];
-          if (!in_round[c]) add += cache_.cost(c);  // a segment named twice counts twice: conservative
-        }
-        if (!chosen.empty() && bytes + add > round_cap) continue;
-        chosen.push_back(p);
-        bytes += add;
-        auto take = [&](uint32_t c) {
-          if (!in_round[c]) in_round[c] = 1, chunks.push_back(c);
-        };
-        take(res_.layout.point_chunk[p]);
-        for (uint32_t s : res_.layout.point_segments[p]) take(res_.layout.segment_chunk[s]);
-      }
-      for (uint32_t c : chunks) in_round[c] = 0;
-      t0 = Clock::now();
-      cache_.acquire(chunks, [&](uint32_t index, const AlignedBytes& b) { decode(index, b); });
-      for (uint32_t p : chosen) bind_meshes(p);
-      // While this round traces, the I/O thread reads ahead the chunks of the points likely next: those
-      // with the most waiting rays that this round does not take (in that order, as the budget allows).
-      std::vector<uint32_t> ahead;
-      for (uint32_t p : chosen) point_mark[p] = 1;
-      for (uint32_t p : order) {
-        if (queue[p].empty() || ahead.size() > 4096) break;
-        if (point_mark[p]) continue;
-        ahead.push_back(res_.layout.point_chunk[p]);
-        for (uint32_t s : res_.layout.point_segments[p]) ahead.push_back(res_.layout.segment_chunk[s]);
-      }
-      for (uint32_t p : chosen) point_mark[p] = 0;
-      if (prefetch_) cache_.prefetch(ahead);
-      st.load_seconds += seconds_since(t0);
-      // All threads on the chosen points' visits, kBlock at a time; rays that move on to another point of
-      // this round are traced in another pass while it is still resident (no reload).
-      std::vector<uint32_t> active = chosen;
-      while (!active.empty()) {
-        struct Work { uint32_t p, first, count; };
-        std::vector<Work> work;
-        for (uint32_t p : active)
-          for (size_t f = 0; f < queue[p].size(); f += kBlock)
-            work.push_back({p, uint32_t(f), uint32_t(std::min(kBlock, queue[p].size() - f))});
-        t0 = Clock::now();
-        tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
-          const Work& wk = work[w];
-          const PointSlot<W, B>& pt = points_[wk.p];
-          const Visit* visits = queue[wk.p].data() + wk.first;
-          fmt::Ray local[kBlock];
-          for (uint32_t j = 0; j < wk.count; ++j) {
-            local[j] = rays[visits[j].ray];
-            local[j].tnear = visits[j].tstart;
-            local[j].tfar = walk_tfar[visits[j].ray];
-          }
-          trace_block(pt.view, pt.s.global_ids, visits, local, wk.count, *locks);
-          Moves& m = moves.local();
-          PackageTraceStats& ws = walk_stats.local();
-          for (uint32_t j = 0; j < wk.count; ++j) {
-            const uint32_t i = visits[j].ray;
-            {
-              auto lock = locks->hold(i);
-              if (--pending[i] != 0) continue;  // its other visits are still to be traced
-            }
-            // Its last pending visit: every answer of its queued points is merged, the ray is this task's.
-            if (!walk_over[i] && !stopped(i)) walk_ahead(i, m, ws);
-          }
-        });
-        st.trace_seconds += seconds_since(t0);
-        ++st.passes;
-        for (uint32_t p : active) std::vector<Visit>().swap(queue[p]);
-        waiting = enqueue_moves();
-        active.clear();
-        for (uint32_t p : chosen)
-          if (!queue[p].empty()) active.push_back(p);
-      }
-      cache_.release();
-      t0 = Clock::now();
-      cull_small_queues();
-      st.walk_seconds += seconds_since(t0);
-      const uint64_t cache_now = cache_.stats().resident_bytes;
-      st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + cache_now + st.peak_ray_bytes);
-    }
-    st.point_visits += cull_stats.point_visits;
-    st.culled_visits += cull_stats.culled_visits;
-    for (const PackageTraceStats& ws : walk_stats) {
-      st.invalid_rays += ws.invalid_rays;
-      st.point_visits += ws.point_visits;
-      st.culled_visits += ws.culled_visits;
-    }
-    const ChunkCacheStats& c = cache_.stats();
-    st.cache = c;
-    st.cache.requests -= cache_before.requests;
-    st.cache.hits -= cache_before.hits;
-    st.cache.loads -= cache_before.loads;
-    st.cache.bytes_read -= cache_before.bytes_read;
-    st.cache.raw_bytes_loaded -= cache_before.raw_bytes_loaded;
-    st.cache.evictions -= cache_before.evictions;
-    st.cache.prefetched -= cache_before.prefetched;
-    st.cache.load_seconds -= cache_before.load_seconds;
-    st.peak_resident_bytes = std::max(st.peak_resident_bytes, st.fixed_bytes + c.peak_resident_bytes + st.peak_ray_bytes);
-    st.total_seconds = seconds_since(t_total);
-    return st;
+    It begin() const { return {l, segs.begin()}; }
+    It end() const { return {l, segs.end()}; }
+  };
+  SegmentChunks point_segment_chunks(uint32_t p) const { return {res_.layout, res_.layout.point_segments[p]}; }
+  ChunkCache& cache() { return cache_; }
+  bool prefetch() const { return prefetch_; }
+  const PointSlot<W, B>& point(uint32_t p) const { return points_[p]; }
+  // Reads, checks and decodes the chunks (the cache keeps them until release()), then binds the points.
+  void load(const std::vector<uint32_t>& chunks, const std::vector<uint32_t>& points) {
+    cache_.acquire(chunks, [&](uint32_t index, const AlignedBytes& b) { decode(index, b); });
+    for (uint32_t p : points) bind_meshes(p);
   }
 
   // True when the point's chunk and its mesh segments are in the cache (tracing it reads nothing).

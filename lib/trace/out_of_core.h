@@ -13,39 +13,23 @@
 
 #include "formats/ray_file.h"
 #include "reader/chunk_cache.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "trace/package_tracer.h"
+#include "trace/tracer.h"
 
 namespace rtp {
 
-inline constexpr uint32_t kDefaultSpeculation = 16;
+// The stats of an out-of-core call are TracerStats (tracer.h), all of their fields filled.
+using OutOfCoreStats = TracerStats;
 
-struct OutOfCoreStats : PackageTraceStats {
-  uint64_t rounds = 0;              // scheduling rounds (a set of batching points made resident)
-  uint64_t passes = 0;              // tracing passes over them (rays moving between points of a round)
-  ChunkCacheStats cache;            // chunks loaded, bytes read, hit rate, peak resident cache bytes
-  uint64_t budget_bytes = 0;        // the cache's budget
-  uint64_t fixed_bytes = 0;         // resident always: top level, descriptors, DAG pool
-  uint64_t peak_ray_bytes = 0;      // per-ray state and ray queues at their largest
-  uint64_t peak_resident_bytes = 0; // fixed + cache + rays, at the largest moment
-  double walk_seconds = 0;          // top-level walks and DAG culling (between rounds, in parallel)
-  double trace_seconds = 0;         // batching-point BVH traversal
-  double load_seconds = 0;          // reading, decompressing and checking chunks
-  double total_seconds = 0;
-};
-
-class OutOfCoreTracer {
+// The out-of-core implementation of Tracer (tracer.h): same results as the in-core tracer's closest /
+// any / multi on all n rays at once. Parallel inside (TBB). The cache persists across calls. Multi-hit:
+// a ray's N-th hit so far is its tfar when it resumes its walk, so later batching points beyond it are
+// never queued.
+class OutOfCoreTracer : public Tracer {
  public:
-  virtual ~OutOfCoreTracer() = default;
-  // Same results as PackageTracer::closest / any on all n rays at once (hits[i].instance = scene
-  // instance). Parallel inside (TBB). The cache persists across calls.
-  virtual OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) = 0;
-  virtual OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) = 0;
-  // The N closest hits, as PackageTracer::multi (the same records): a ray's N-th hit so far is its
-  // tfar when it resumes its walk, so later batching points beyond it are never queued.
-  virtual OutOfCoreStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
-                               const PackageTraceOptions& o) = 0;
-  virtual bool has_dags() const = 0;
+  bool out_of_core() const override { return true; }
+  PackageLoadStats load_stats() const override { return {}; }
   // Reading the next round's likely chunks on a background I/O thread while a round traces, a quarter of
   // the budget kept for them (default off: every chunk is read, in parallel, when its round starts; on
   // this project's 2-core machine reading ahead was slower, docs/trace/budget.md). Same hits either way.

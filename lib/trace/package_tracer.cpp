@@ -19,8 +19,8 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
-#include "reader/chunk_io.h"
-#include "trace/dag_trace.h"
+#include "layout/chunk_io.h"
+#include "layout/dag_query.h"
 #include "trace/top_level_walk.h"
 
 namespace rtp {
@@ -46,9 +46,9 @@ struct Point {
 };
 
 template <int W, int B>
-class Tracer final : public PackageTracer {
+class InCoreTracer final : public PackageTracer {
  public:
-  explicit Tracer(const PackageReader& r) {
+  explicit InCoreTracer(const PackageReader& r) {
     const auto t_start = Clock::now();
     const auto& toc = r.toc();
     auto load = [&](fmt::ChunkKind kind, uint64_t id) -> const AlignedBytes& {
@@ -453,11 +453,11 @@ uint32_t merge_point_hits(fmt::Hit* list, uint32_t count, uint32_t max_hits, con
 
 std::unique_ptr<PackageTracer> load_package_in_core(const PackageReader& r) {
   const uint32_t w = r.header().bvh_width, b = r.header().leaf_width;
-  if (w == 4 && b == 4) return std::make_unique<Tracer<4, 4>>(r);
-  if (w == 8 && b == 8) return std::make_unique<Tracer<8, 8>>(r);
-  if (w == 16 && b == 16) return std::make_unique<Tracer<16, 16>>(r);
-  if (w == 8 && b == 4) return std::make_unique<Tracer<8, 4>>(r);
-  if (w == 16 && b == 8) return std::make_unique<Tracer<16, 8>>(r);
+  if (w == 4 && b == 4) return std::make_unique<InCoreTracer<4, 4>>(r);
+  if (w == 8 && b == 8) return std::make_unique<InCoreTracer<8, 8>>(r);
+  if (w == 16 && b == 16) return std::make_unique<InCoreTracer<16, 16>>(r);
+  if (w == 8 && b == 4) return std::make_unique<InCoreTracer<8, 4>>(r);
+  if (w == 16 && b == 8) return std::make_unique<InCoreTracer<16, 8>>(r);
   fail_invalid("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
 }
 

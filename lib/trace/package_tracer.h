@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "formats/ray_file.h"
-#include "reader/container.h"
+#include "reader/reader.h"
 #include "trace/trace.h"
-#include "trace/dag_trace.h"
+#include "layout/dag_query.h"
 
 namespace rtp {
 

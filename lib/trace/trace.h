@@ -4,14 +4,12 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "core/isa.h"
 #include "formats/ray_file.h"
-#include "trace/scene_view.h"
+#include "layout/hit_order.h"
+#include "layout/scene_view.h"
 
 namespace rtp {
-
-enum class Isa { kScalar, kAvx2, kAvx512 };
-Isa detect_isa();              // the best this CPU supports (cpuid + OS support)
-const char* isa_name(Isa isa);  // "scalar", "avx2", "avx512"
 
 // Benthin 2008 §5.3–5.4 unsorted active list with pruning, or Molenaar 2019 §4.1 octant order + stack.
 enum class TraversalOrder { kOctantStack, kActiveList };
@@ -63,12 +61,7 @@ TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t
 // kCollectAll is the naive baseline (every hit, sorted, cut to N; allocates), same answers.
 // Throws rtp::Error(kUsage) for N outside [1, kMaxMultiHit].
 inline constexpr uint32_t kMaxMultiHit = 64;
-// TESTING.md item 7 order of hits: t, then instance, then primitive. For baseline code (the package
-// tracer, the Embree oracle, tests); the ISA kernels keep their own copy (multi_hit.h) so nothing
-// compiled with -mavx512* is shared with them.
-inline bool hit_order_less(const fmt::Hit& a, const fmt::Hit& b) {
-  return a.t != b.t ? a.t < b.t : (a.instance != b.instance ? a.instance < b.instance : a.prim < b.prim);
-}
+// The order of hits is hit_order_less (layout/hit_order.h).
 enum class MultiHitMethod { kNodeCulling, kCollectAll };
 template <int W, int B>
 TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,

@@ -8,8 +8,8 @@
 #include "core/math.h"
 #include "formats/dag.h"
 #include "voxel/hash_index.h"
-#include "trace/trace.h"  // Isa, detect_isa
-#include "trace/dag_trace.h"  // DagView, DagHit, check_dag(s), dag_first_entry
+#include "core/isa.h"
+#include "layout/dag_query.h"  // DagView, DagHit, check_dag(s), dag_first_entry
 
 namespace rtp::voxel {
 

@@ -13,8 +13,9 @@
 #include "fuzz_util.h"
 #include "reseal.h"
 #include "reader/attribute_lookup.h"
-#include "package/inspect.h"
-#include "package/package.h"
+#include "inspect/inspect.h"
+#include "package/writer.h"
+#include "reader/reader.h"
 #include "trace/out_of_core.h"
 #include "trace/package_tracer.h"
 

@@ -9,7 +9,7 @@
 
 #include "fuzz_util.h"
 #include "trace/package_tracer.h"
-#include "trace/ray_file.h"
+#include "reader/ray_file.h"
 
 namespace {
 

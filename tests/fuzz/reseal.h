@@ -9,7 +9,8 @@
 #include <vector>
 
 #include "formats/package.h"
-#include "package/package.h"
+#include "package/writer.h"
+#include "reader/reader.h"
 
 namespace rtp::fuzz {
 

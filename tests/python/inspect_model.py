@@ -1,4 +1,4 @@
-"""What rtpack-inspect computes (lib/package/inspect*.cpp), recomputed from python/rtpack.py's arrays:
+"""What rtpack-inspect computes (lib/inspect/inspect*.cpp), recomputed from python/rtpack.py's arrays:
 spreads, histograms, BVH shape statistics and the DAG pool walk of SPEC §4.5. Used by
 test_rtpack_reader.py to compare the Python reader with `rtpack-inspect --json` field by field.
 """
