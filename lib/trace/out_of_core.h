@@ -42,14 +42,7 @@ class OutOfCoreTracer : public Tracer {
   virtual void set_speculation(uint32_t depth) = 0;
 };
 
-// The decompressed bytes of the chunks tracing reads on demand (batching points and mesh segments):
-// what "--memory-budget 10%" is a percentage of.
-uint64_t on_demand_bytes(const PackageReader& reader);
-// The smallest budget the tracer accepts: the largest batching point with its mesh segments.
-uint64_t minimum_budget(const PackageReader& reader);
-// "268435456", "256MiB", "1.5GiB", "64MB", "512KiB", "10%" (of on_demand) -> bytes; throws
-// Error(kUsage) naming the text when it is none of these.
-uint64_t parse_memory_budget(const std::string& text, uint64_t on_demand);
+// on_demand_bytes, minimum_budget, parse_memory_budget: tracer.h.
 
 // Reads and checks the resident chunks; throws Error(kUsage) when budget_bytes < minimum_budget(),
 // naming the minimum, and Error(kInputInvalid) naming a bad chunk (here or when a round loads it).

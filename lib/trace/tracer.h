@@ -5,6 +5,7 @@
 // hits are byte-identical to the in-core one's for every budget, thread count and ray order).
 #include <cstdint>
 #include <memory>
+#include <string>
 
 #include "formats/ray_file.h"
 #include "reader/chunk_cache.h"
@@ -48,6 +49,15 @@ class Tracer {
   // What loading every chunk cost (in core); zeros out of core, whose loads are in each call's stats.
   virtual PackageLoadStats load_stats() const = 0;
 };
+
+// The decompressed bytes of the chunks tracing reads on demand (batching points and mesh segments):
+// what "--memory-budget 10%" is a percentage of.
+uint64_t on_demand_bytes(const PackageReader& reader);
+// The smallest budget the tracer accepts: the largest batching point with its mesh segments.
+uint64_t minimum_budget(const PackageReader& reader);
+// "268435456", "256MiB", "1.5GiB", "64MB", "512KiB", "10%" (of on_demand) -> bytes; throws
+// Error(kUsage) naming the text when it is none of these.
+uint64_t parse_memory_budget(const std::string& text, uint64_t on_demand);
 
 struct TracerConfig {
   // 0: every chunk loaded and checked up front (in core). Otherwise the out-of-core batched tracer's
