@@ -35,20 +35,20 @@ struct SectionEntry {
 static_assert(sizeof(SectionEntry) == 24 && offsetof(SectionEntry, offset) == 8);
 
 enum class SectionType : uint32_t {
-  kNodes = 1,         // WideNode<W>[]  (mesh or instance BVH nodes, concatenated)
-  kBlocks = 2,        // LeafBlock<B>[] (concatenated)
-  kMeshEntries = 3,   // MeshEntry[]    (one BVH per entry: its slice of kNodes/kBlocks)
-  kInstanceIds = 4,   // uint32[]       top-level leaf entries (local instance indices)
-  kInstances = 5,     // InstanceRecord[] local instances (mesh = local mesh slot)
-  kGlobalIds = 6,     // uint32[]       per local instance: the scene instance index
-  kMeshSlots = 7,     // uint32[]       per local mesh slot: global mesh id, or kPieceBit | entry
-  kTopNodes = 8,      // TopNode[]
-  kPointDescs = 9,    // BatchingPointDesc[]
-  kSegmentRefs = 10,  // uint32[]       mesh segments a batching point needs (ranges in descs)
-  kMeshTable = 11,    // MeshInfo[]     resident global mesh table
-  kSourcePrims = 12,  // SourcePrimitive pairs {gltf mesh, gltf primitive} (uint32[2])
-  kSourceTris = 13,   // TriangleSource pairs {primitive slot, triangle} (uint32[2])
-  kJson = 14,         // uint8[] UTF-8 JSON text
+  kNodes = 1,           // WideNode<W>[]  (mesh or instance BVH nodes, concatenated)
+  kBlocks = 2,          // LeafBlock<B>[] (concatenated)
+  kMeshEntries = 3,     // MeshEntry[]    (one BVH per entry: its slice of kNodes/kBlocks)
+  kInstanceIds = 4,     // uint32[]       top-level leaf entries (local instance indices)
+  kInstances = 5,       // InstanceRecord[] local instances (mesh = local mesh slot)
+  kGlobalIds = 6,       // uint32[]       per local instance: the scene instance index
+  kMeshSlots = 7,       // uint32[]       per local mesh slot: global mesh id, or kPieceBit | entry
+  kTopNodes = 8,        // TopNode[]
+  kPointDescs = 9,      // BatchingPointDesc[]
+  kSegmentRefs = 10,    // uint32[]       mesh segments a batching point needs (ranges in descs)
+  kMeshTable = 11,      // MeshInfo[]     resident global mesh table
+  kSourcePrims = 12,    // SourcePrimitive pairs {gltf mesh, gltf primitive} (uint32[2])
+  kSourceTris = 13,     // TriangleSource pairs {primitive slot, triangle} (uint32[2])
+  kJson = 14,           // uint8[] UTF-8 JSON text
   kInstanceNodes = 15,  // WideNode<W>[] the batching point's instance BVH
   kInstanceBvh = 16,    // one MeshEntry: the instance BVH's root and sizes (items in kInstanceIds)
   // Attribute chunks (kinds 18/19, only with rtpack-convert --attributes), SPEC §4.4:
@@ -58,17 +58,17 @@ enum class SectionType : uint32_t {
   kAttrUvs = 20,        // float[2][]       per vertex: TEXCOORD_0
   kAttrTriIds = 21,     // uint32[]         per piece triangle: its index in the scene mesh, ascending
   // Occlusion culling (2.0), SPEC §4.5 and formats/dag.h:
-  kPointGrids = 22,     // DagGrid[]        per batching point (descriptors chunk): grid and DAG root
-  kDagNodes = 23,       // uint32[]         DAG pool node words (kind 7)
-  kDagLeaves = 24,      // uint64[]         DAG pool leaf masks (kind 7)
+  kPointGrids = 22,  // DagGrid[]        per batching point (descriptors chunk): grid and DAG root
+  kDagNodes = 23,    // uint32[]         DAG pool node words (kind 7)
+  kDagLeaves = 24,   // uint64[]         DAG pool leaf masks (kind 7)
   // 5.0: the instance table holds where each record is, not a copy of it, SPEC §2.5:
-  kInstanceRefs = 25,   // InstanceRef[]    per scene instance (instance table, kind 4)
+  kInstanceRefs = 25,  // InstanceRef[]    per scene instance (instance table, kind 4)
   // 7.0: instance boxes as the culling proxy of instance-heavy points, SPEC §4.5 and formats/dag.h:
-  kCullNodes = 26,      // CullNode<W>[]    DAG pool chunk (kind 7): those points' instance BVHs, 8-bit boxes
+  kCullNodes = 26,  // CullNode<W>[]    DAG pool chunk (kind 7): those points' instance BVHs, 8-bit boxes
 };
 
 inline constexpr uint32_t kMeshInstanced = 1, kMeshNormals = 2, kMeshUvs = 4;  // MeshInfo::flags
-inline constexpr uint32_t kPieceBit = 0x80000000u;  // kMeshSlots: a piece stored in this chunk
+inline constexpr uint32_t kPieceBit = 0x80000000u;                             // kMeshSlots: a piece stored in this chunk
 
 // One BVH inside a chunk, 32 bytes:
 //   0  uint32 id           global mesh id (segments) or piece index (batching points)

@@ -54,9 +54,8 @@ struct Header {
   uint32_t header_crc32c;
 };
 static_assert(sizeof(Header) == 128);
-static_assert(offsetof(Header, toc_offset) == 32 && offsetof(Header, toc_crc32c) == 52 &&
-              offsetof(Header, bounds_lo) == 72 && offsetof(Header, bvh_width) == 96 &&
-              offsetof(Header, header_crc32c) == 124);
+static_assert(offsetof(Header, toc_offset) == 32 && offsetof(Header, toc_crc32c) == 52 && offsetof(Header, bounds_lo) == 72 &&
+              offsetof(Header, bvh_width) == 96 && offsetof(Header, header_crc32c) == 124);
 
 // Header flags (SPEC §1.1). Unknown bits are ignored by readers.
 inline constexpr uint64_t kFlagNormals = 1;  // some attribute chunk holds normals
@@ -65,15 +64,15 @@ inline constexpr uint64_t kFlagDag = 4;      // the package holds culling DAGs (
 
 // Chunk kinds (SPEC §3). Readers skip kinds they do not know.
 enum class ChunkKind : uint32_t {
-  kMetadata = 1,        // resident: JSON (source, options, tool version, cameras, source map summary)
-  kTopLevelBvh = 2,     // resident: 4-wide top-level BVH over batching points, with parent pointers
-  kBatchingPoints = 3,  // resident: batching-point descriptors
-  kInstances = 4,       // resident: InstanceRecord table
-  kMeshes = 5,          // resident: mesh table (mesh -> segment, BVH root, triangle count)
-  kSourceMap = 6,       // resident: per mesh triangle -> glTF (mesh, primitive, triangle)
-  kDagPool = 7,         // resident: the sparse voxel DAG pool shared by every batching point (2.0)
-  kBatchingPoint = 16,  // on demand: one batching point's unique geometry and instance list
-  kMeshSegment = 17,    // on demand: several instanced meshes with their local-space BVHs
+  kMetadata = 1,            // resident: JSON (source, options, tool version, cameras, source map summary)
+  kTopLevelBvh = 2,         // resident: 4-wide top-level BVH over batching points, with parent pointers
+  kBatchingPoints = 3,      // resident: batching-point descriptors
+  kInstances = 4,           // resident: InstanceRecord table
+  kMeshes = 5,              // resident: mesh table (mesh -> segment, BVH root, triangle count)
+  kSourceMap = 6,           // resident: per mesh triangle -> glTF (mesh, primitive, triangle)
+  kDagPool = 7,             // resident: the sparse voxel DAG pool shared by every batching point (2.0)
+  kBatchingPoint = 16,      // on demand: one batching point's unique geometry and instance list
+  kMeshSegment = 17,        // on demand: several instanced meshes with their local-space BVHs
   kSegmentAttributes = 18,  // on demand: normals/uvs of mesh segment `id` (only with --attributes)
   kPointAttributes = 19,    // on demand: normals/uvs of batching point `id`'s pieces
 };

@@ -51,9 +51,7 @@ struct GltfBuilder {
     j["accessors"].push_back(a);
     return int(j["accessors"].size() - 1);
   }
-  int add_positions(const std::vector<float>& xyz) {
-    return add_accessor(add_view(xyz), 5126, "VEC3", xyz.size() / 3);
-  }
+  int add_positions(const std::vector<float>& xyz) { return add_accessor(add_view(xyz), 5126, "VEC3", xyz.size() / 3); }
   template <class T>
   int add_indices(const std::vector<T>& idx) {
     const int ct = sizeof(T) == 1 ? 5121 : (sizeof(T) == 2 ? 5123 : 5125);
@@ -88,7 +86,8 @@ struct GltfBuilder {
     nlohmann::json d = j;
     d["buffers"] = {{{"byteLength", bin.size()}, {"uri", bin_name}}};
     std::ofstream(p, std::ios::binary) << d.dump();
-    std::ofstream(p.parent_path() / bin_name, std::ios::binary).write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+    std::ofstream(p.parent_path() / bin_name, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
     return p.string();
   }
   std::string glb_bytes() const {
@@ -150,16 +149,14 @@ inline bool shared_assets_required() {
 
 // Skips the test when `where` (a ../shared/assets file or directory) is absent, or fails it under
 // RTP_REQUIRE_SHARED. Returns from the test body either way.
-#define RTP_NEED_SHARED(where)                                                                               \
-  do {                                                                                                      \
-    const std::filesystem::path rtp_need_shared_path_ = (where);                                             \
-    if (!std::filesystem::exists(rtp_need_shared_path_)) {                                                  \
-      if (::rtp::test::shared_assets_required())                                                            \
-        FAIL() << rtp_need_shared_path_ << " is absent, and RTP_REQUIRE_SHARED is set (../shared/assets)"; \
+#define RTP_NEED_SHARED(where)                                                                                            \
+  do {                                                                                                                    \
+    const std::filesystem::path rtp_need_shared_path_ = (where);                                                          \
+    if (!std::filesystem::exists(rtp_need_shared_path_)) {                                                                \
+      if (::rtp::test::shared_assets_required())                                                                          \
+        FAIL() << rtp_need_shared_path_ << " is absent, and RTP_REQUIRE_SHARED is set (../shared/assets)";                \
       GTEST_SKIP() << rtp_need_shared_path_ << " is absent (../shared/assets is not checked out next to the repository)"; \
-    }                                                                                                       \
+    }                                                                                                                     \
   } while (0)
 
-namespace rtp::test {
-
-}  // namespace rtp::test
+namespace rtp::test {}  // namespace rtp::test

@@ -134,8 +134,10 @@ class Hostile : public ::testing::Test {
     const fs::path rays = dir / "tools.rays", hits = dir / "tools.hits";
     if (!fs::exists(rays)) {
       std::vector<fmt::Ray> r(64);
-      for (size_t i = 0; i < r.size(); ++i) r[i] = {{float(i) * 0.5f - 16.f, 50.f, float(i % 8) - 4.f}, 0.f, {0.01f, -1.f, 0.02f}, 1e30f};
-      std::ofstream(rays, std::ios::binary).write(reinterpret_cast<const char*>(r.data()), std::streamsize(r.size() * sizeof(fmt::Ray)));
+      for (size_t i = 0; i < r.size(); ++i)
+        r[i] = {{float(i) * 0.5f - 16.f, 50.f, float(i % 8) - 4.f}, 0.f, {0.01f, -1.f, 0.02f}, 1e30f};
+      std::ofstream(rays, std::ios::binary)
+          .write(reinterpret_cast<const char*>(r.data()), std::streamsize(r.size() * sizeof(fmt::Ray)));
     }
     const std::vector<std::pair<std::string, std::vector<std::string>>> runs = {
         {"rtpack-trace", {path, "--rays", rays.string(), "--hits", hits.string()}},

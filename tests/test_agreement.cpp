@@ -28,7 +28,8 @@
 #include "scene/import.h"
 #include "trace/trace.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace rtp;
 namespace fs = std::filesystem;
@@ -86,8 +87,7 @@ struct Tally {
 // given for far.glb, whose instances sit where Embree's float matrices are off by more than the
 // triangles; ties of either kind must stay rare everywhere.
 template <int W>
-void check_width(const Scene& scene, const std::vector<KindCase>& cases, const BruteForceReference* exact,
-                 Tally& tally) {
+void check_width(const Scene& scene, const std::vector<KindCase>& cases, const BruteForceReference* exact, Tally& tally) {
   CompareOptions own_opt;  // rtpack's any hit against its own closest hit: no third party decides
   own_opt.scene = &scene;
   CompareOptions copt = own_opt;
@@ -114,8 +114,7 @@ void check_width(const Scene& scene, const std::vector<KindCase>& cases, const B
         EXPECT_LE(rep.precision_ties, n / 100) << rep.details();
         const AnyHitReport own = check_any_hit(c.rays.data(), hits.data(), occ.data(), n, own_opt);
         EXPECT_EQ(own.failures, 0u) << "any hit vs rtpack's closest hit: " << own.details();
-        const AnyHitReport cross =
-            check_any_hit(c.rays.data(), c.ref.data(), occ.data(), n, copt, c.skip.data(), hits.data());
+        const AnyHitReport cross = check_any_hit(c.rays.data(), c.ref.data(), occ.data(), n, copt, c.skip.data(), hits.data());
         EXPECT_EQ(cross.failures, 0u) << "any hit vs Embree's closest hit: " << cross.details();
         tally.rays += n;
         tally.agree += rep.agree();
@@ -134,16 +133,16 @@ void check_scene(const std::string& path, bool far_from_origin) {
   const EmbreeOracle oracle(scene, OracleQuality::kMedium);
   const std::vector<KindCase> cases = make_cases(scene, oracle);
   Tally tally;
-  const std::unique_ptr<BruteForceReference> exact =
-      far_from_origin ? std::make_unique<BruteForceReference>(scene) : nullptr;
+  const std::unique_ptr<BruteForceReference> exact = far_from_origin ? std::make_unique<BruteForceReference>(scene) : nullptr;
   check_width<4>(scene, cases, exact.get(), tally);
   check_width<8>(scene, cases, exact.get(), tally);
   check_width<16>(scene, cases, exact.get(), tally);
-  std::printf("[ agreement] %s: %llu closest-hit rays, %llu agree, %llu edge ties, %llu precision ties, %llu failures, "
-              "%llu Embree errors settled by the double reference\n",
-              fs::path(path).filename().c_str(), (unsigned long long)tally.rays, (unsigned long long)tally.agree,
-              (unsigned long long)tally.ties, (unsigned long long)tally.precision_ties,
-              (unsigned long long)tally.failures, (unsigned long long)tally.reference_errors);
+  std::printf(
+      "[ agreement] %s: %llu closest-hit rays, %llu agree, %llu edge ties, %llu precision ties, %llu failures, "
+      "%llu Embree errors settled by the double reference\n",
+      fs::path(path).filename().c_str(), (unsigned long long)tally.rays, (unsigned long long)tally.agree,
+      (unsigned long long)tally.ties, (unsigned long long)tally.precision_ties, (unsigned long long)tally.failures,
+      (unsigned long long)tally.reference_errors);
   if (far_from_origin) {
     EXPECT_GT(tally.reference_errors, 0u) << "far.glb: Embree's float matrices are never caught";
   }
@@ -169,7 +168,8 @@ const ReplayRay kReplays[] = {
      "bounce ray #61120 (rtpack-bench, seed 1): its origin is 2.5e-7 in front of instance 338's prim 10123, "
      "crossed at t = 1.2e-6 in double; Embree's float instance matrix puts it behind and answers prim 18575 "
      "at 0.084 (reported as a failure until the bench had a double judge for large scenes)",
-     true, true},
+     true,
+     true},
 };
 
 template <int W>
@@ -232,19 +232,19 @@ TEST_P(Agreement, TracerAgreesWithEmbreeRayByRay) {
   check_scene(path, sc.far_from_origin);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Samples, Agreement,
-    ::testing::Values(SceneCase{"Lantern", "khronos/Lantern/glTF/Lantern.gltf", false},
-                      SceneCase{"LanternQuantized", "khronos/Lantern/glTF-Quantized/Lantern.gltf", false},
-                      SceneCase{"LanternDraco", "khronos/Lantern/glTF-Draco/Lantern.gltf", false},
-                      SceneCase{"BoomBox", "khronos/BoomBox/glTF/BoomBox.gltf", false},
-                      SceneCase{"FlightHelmet", "khronos/FlightHelmet/glTF/FlightHelmet.gltf", false},
-                      SceneCase{"FlightHelmetMeshopt", "khronos/FlightHelmet/FlightHelmet-meshopt.glb", false},
-                      SceneCase{"Suzanne", "khronos/Suzanne/glTF/Suzanne.gltf", false},
-                      SceneCase{"Gallery", "generated/gallery.glb", false},
-                      SceneCase{"ForestSmall", "generated/forest-small.glb", false},
-                      SceneCase{"Far", "generated/far.glb", false, true}),
-    [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Samples, Agreement,
+                         ::testing::Values(SceneCase{"Lantern", "khronos/Lantern/glTF/Lantern.gltf", false},
+                                           SceneCase{"LanternQuantized", "khronos/Lantern/glTF-Quantized/Lantern.gltf", false},
+                                           SceneCase{"LanternDraco", "khronos/Lantern/glTF-Draco/Lantern.gltf", false},
+                                           SceneCase{"BoomBox", "khronos/BoomBox/glTF/BoomBox.gltf", false},
+                                           SceneCase{"FlightHelmet", "khronos/FlightHelmet/glTF/FlightHelmet.gltf", false},
+                                           SceneCase{"FlightHelmetMeshopt", "khronos/FlightHelmet/FlightHelmet-meshopt.glb",
+                                                     false},
+                                           SceneCase{"Suzanne", "khronos/Suzanne/glTF/Suzanne.gltf", false},
+                                           SceneCase{"Gallery", "generated/gallery.glb", false},
+                                           SceneCase{"ForestSmall", "generated/forest-small.glb", false},
+                                           SceneCase{"Far", "generated/far.glb", false, true}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 INSTANTIATE_TEST_SUITE_P(Shared, Agreement,
                          ::testing::Values(SceneCase{"SharedGallery", "scenes/gallery.glb", true},
@@ -286,4 +286,5 @@ TEST(InstanceReference, AnswersExactlyAsTheBruteForce) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

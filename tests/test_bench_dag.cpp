@@ -15,7 +15,8 @@
 
 #include "bench_run.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -29,8 +30,8 @@ inline ToolRun run(const std::string& args) { return rtp::test::run_bench(args);
 
 TEST(BenchDag, Usage) {
   ASSERT_TRUE(fs::exists(kTool)) << kTool << " is not built (rtp_tests depends on it)";
-  EXPECT_EQ(run(q(kGallery) + " " + q(kGallery)).code, 1);                  // several scenes need --dag
-  EXPECT_EQ(run(q(kGallery) + " --dag --resolutions 48").code, 1);         // not a power of two
+  EXPECT_EQ(run(q(kGallery) + " " + q(kGallery)).code, 1);          // several scenes need --dag
+  EXPECT_EQ(run(q(kGallery) + " --dag --resolutions 48").code, 1);  // not a power of two
   EXPECT_EQ(run(q(kGallery) + " --dag --parts proxy,nope").code, 1);
   EXPECT_EQ(run(q(kGallery) + " --dag --convert").code, 1);
   EXPECT_EQ(run("/nonexistent/scene.glb --dag --parts convert").code, 2);
@@ -105,4 +106,5 @@ TEST(BenchDag, RecordsAreCompleteAndConsistent) {
   EXPECT_EQ(sweeps, want);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

@@ -13,7 +13,8 @@
 #include "test_bvh_check.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using bvhtest::check_mesh_bvh;
 
@@ -120,9 +121,9 @@ TEST(BvhBuild, ZeroAreaAndNeedleTriangles) {
   for (int i = 0; i < 3000; ++i) {
     const Vec3f p{u(rng), u(rng), u(rng)};
     switch (i % 4) {
-      case 0: tris.push_back({p, p, p}); break;                                     // a point
+      case 0: tris.push_back({p, p, p}); break;                                                // a point
       case 1: tris.push_back({p, Vec3f{p.x + 1, p.y, p.z}, Vec3f{p.x + 2, p.y, p.z}}); break;  // collinear
-      case 2: {                                                                      // needle
+      case 2: {                                                                                // needle
         const Vec3f q{u(rng) * 100, u(rng) * 100, u(rng) * 100};
         tris.push_back({p, q, Vec3f{q.x, std::nextafter(q.y, 1e9f), q.z}});
         break;
@@ -132,7 +133,8 @@ TEST(BvhBuild, ZeroAreaAndNeedleTriangles) {
   }
   check_all(from_triangles("degenerate-mix", tris));
   // Every triangle the same point: SA(root) = 0.
-  check_all(from_triangles("one-point", std::vector<std::array<Vec3f, 3>>(500, {Vec3f{1, 2, 3}, Vec3f{1, 2, 3}, Vec3f{1, 2, 3}})));
+  check_all(
+      from_triangles("one-point", std::vector<std::array<Vec3f, 3>>(500, {Vec3f{1, 2, 3}, Vec3f{1, 2, 3}, Vec3f{1, 2, 3}})));
 }
 
 TEST(BvhBuild, HugeAndSignedZeroCoordinates) {
@@ -317,5 +319,6 @@ TEST(BvhBuild, LargestLeavesFitSixteenBlocks) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

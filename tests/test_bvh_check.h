@@ -191,9 +191,15 @@ MeshCheck check_mesh_bvh(const Mesh& mesh, const MeshBvh<W, B>& bvh, uint32_t ma
         prev = prim;
         for (int v = 0; v < 3; ++v) {
           const Vec3f& p = mesh.positions[mesh.indices[3 * size_t(prim) + size_t(v)]];
-          const float* lane_v[3] = {v == 0 ? blk.v0[0] : v == 1 ? blk.v1[0] : blk.v2[0],
-                                    v == 0 ? blk.v0[1] : v == 1 ? blk.v1[1] : blk.v2[1],
-                                    v == 0 ? blk.v0[2] : v == 1 ? blk.v1[2] : blk.v2[2]};
+          const float* lane_v[3] = {v == 0   ? blk.v0[0]
+                                    : v == 1 ? blk.v1[0]
+                                             : blk.v2[0],
+                                    v == 0   ? blk.v0[1]
+                                    : v == 1 ? blk.v1[1]
+                                             : blk.v2[1],
+                                    v == 0   ? blk.v0[2]
+                                    : v == 1 ? blk.v1[2]
+                                             : blk.v2[2]};
           for (int a = 0; a < 3; ++a)
             EXPECT_TRUE(same_bits(lane_v[a][l], p[a])) << "triangle " << prim << " vertex " << v << " differs";
           b.grow(p.x, p.y, p.z);

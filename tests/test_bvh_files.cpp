@@ -11,7 +11,8 @@
 #include "test_bvh_check.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 const fs::path kSamples = fs::path(RTP_SOURCE_DIR) / "samples";
@@ -84,5 +85,6 @@ TEST(BvhFiles, SharedAssetsIfPresent) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -19,7 +19,8 @@
 #include "trace/trace.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using bvhtest::DBox;
@@ -150,7 +151,8 @@ TEST(BvhScene, GalleryAllConfigs) {
     o.method = m;
     for_each_config([&]<int W, int B>() {
       const InCoreScene<W, B> ics = InCoreScene<W, B>::build(scene, o);
-      const size_t n = check_scene<W, B>(scene, ics, o, "gallery W=" + std::to_string(W) + " B=" + std::to_string(B) + " " + method_name(m));
+      const size_t n =
+          check_scene<W, B>(scene, ics, o, "gallery W=" + std::to_string(W) + " B=" + std::to_string(B) + " " + method_name(m));
       EXPECT_EQ(n, scene.instances.size());
       EXPECT_TRUE(ics.warnings().empty());
     });
@@ -194,8 +196,8 @@ TEST(BvhScene, DegenerateInstances) {
   const double mirror[3] = {-1, 1, 1};
   add(1, Mat4d::from_trs(t0, q0, mirror));  // mirrored
   const double flat[3] = {1, 1, 0};
-  add(0, Mat4d::from_trs(t0, q0, flat));  // singular: left out
-  add(2, Mat4d::identity());              // empty mesh: left out
+  add(0, Mat4d::from_trs(t0, q0, flat));                              // singular: left out
+  add(2, Mat4d::identity());                                          // empty mesh: left out
   for (int k = 0; k < 40; ++k) add(0, Mat4d::from_trs(t1, q0, one));  // 40 identical boxes
   for (BuildMethod m : {BuildMethod::kCollapse, BuildMethod::kSplit}) {
     BuildOptions o;
@@ -263,8 +265,12 @@ TEST(BvhScene, DeterministicForAnyThreadCount) {
 
 TEST(BvhScene, TransformBoundsContainCorners) {
   Box3f local;
-  local.lo[0] = -1; local.lo[1] = -2; local.lo[2] = -0.5f;
-  local.hi[0] = 1;  local.hi[1] = 2;  local.hi[2] = 0.5f;
+  local.lo[0] = -1;
+  local.lo[1] = -2;
+  local.lo[2] = -0.5f;
+  local.hi[0] = 1;
+  local.hi[1] = 2;
+  local.hi[2] = 0.5f;
   const double t[3] = {1e5, -3e6, 7}, q[4] = {0.5, 0.5, 0.5, 0.5}, sc[3] = {1e-3, 7, -2};
   const Affine3x4 m = Affine3x4::from(Mat4d::from_trs(t, q, sc));
   const Box3f w = transform_bounds(m, &local, 1);
@@ -282,10 +288,20 @@ TEST(BvhScene, TransformBoundsContainCorners) {
 // random bit patterns of every class (denormals, zeros of both signs, the largest finite, NaN).
 TEST(BvhScene, FloatStepsAreNextafter) {
   const float inf = std::numeric_limits<float>::infinity();
-  std::vector<float> v = {0.0f, -0.0f, inf, -inf, std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
-                          std::numeric_limits<float>::min(), -std::numeric_limits<float>::min(),
-                          std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(), 1.0f, -1.0f,
-                          3000000.25f, -2000000.75f};
+  std::vector<float> v = {0.0f,
+                          -0.0f,
+                          inf,
+                          -inf,
+                          std::numeric_limits<float>::max(),
+                          -std::numeric_limits<float>::max(),
+                          std::numeric_limits<float>::min(),
+                          -std::numeric_limits<float>::min(),
+                          std::numeric_limits<float>::denorm_min(),
+                          -std::numeric_limits<float>::denorm_min(),
+                          1.0f,
+                          -1.0f,
+                          3000000.25f,
+                          -2000000.75f};
   std::mt19937 rng(11);
   for (int i = 0; i < 100000; ++i) v.push_back(std::bit_cast<float>(uint32_t(rng())));
   for (float x : v) {
@@ -354,5 +370,6 @@ TEST(InCoreSceneDirect, OneIdentityInstanceSkipsTheInstanceLevelWithTheSameAnswe
   EXPECT_EQ((InCoreScene<8, 8>::build(two).view().direct), kNoDirectInstance);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -12,7 +12,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 void check_plan(const Scene& s, const Plan& p) {
   // Instances of instanced meshes: exactly once over all points.
@@ -51,7 +52,7 @@ void check_plan(const Scene& s, const Plan& p) {
   // Targets: a point over the target holds a single object.
   for (const auto& bp : p.points) {
     const uint64_t w = p.chunk_by == ChunkBy::kInstanced ? bp.unique_triangles + bp.instanced_triangles
-                                                          : bp.unique_triangles + bp.instances.size();
+                                                         : bp.unique_triangles + bp.instances.size();
     if (w > p.chunk_target) {
       EXPECT_EQ(bp.pieces.size() + bp.instances.size(), 1u);
     }
@@ -97,7 +98,7 @@ TEST(Cluster, GallerySmallTargetManyPoints) {
   o.chunk_target = 2000;
   const Plan p = plan_batching_points(s, o);
   EXPECT_GT(p.points.size(), 4u);
-  EXPECT_TRUE(p.pieces.empty());  // every gallery mesh is used at least twice: all instanced
+  EXPECT_TRUE(p.pieces.empty());     // every gallery mesh is used at least twice: all instanced
   EXPECT_EQ(p.segments.size(), 5u);  // 15k triangles in segments of at most 2000 (one mesh each here)
   check_plan(s, p);
 }
@@ -219,5 +220,6 @@ TEST(Cluster, ParallelCutIsCompleteAndTheSameForAnyThreadCount) {
   std::filesystem::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -38,7 +38,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 constexpr float kInfF = std::numeric_limits<float>::infinity();
@@ -329,14 +330,14 @@ CullTally check_culling(const Converted& c, const std::vector<fmt::Ray>& rays) {
 }
 
 void print(const std::string& name, const CullTally& t, const char* mode = "") {
-  std::printf("[  culling ] %s%s: %llu rays, %llu points: %llu pairs, %llu with a hit, %llu culled; %llu false culls, "
-              "%llu late entries, %llu closest / %llu any mismatches culled vs unculled (%llu hits off their triangle, "
-              "%llu differences they cause)\n",
-              name.c_str(), mode, (unsigned long long)t.rays, (unsigned long long)t.points, (unsigned long long)t.pairs,
-              (unsigned long long)t.hit_pairs, (unsigned long long)t.culled_pairs, (unsigned long long)t.false_culls,
-              (unsigned long long)t.late_entries, (unsigned long long)t.closest_mismatches,
-              (unsigned long long)t.any_mismatches, (unsigned long long)t.unreal_hits,
-              (unsigned long long)t.unreal_mismatches);
+  std::printf(
+      "[  culling ] %s%s: %llu rays, %llu points: %llu pairs, %llu with a hit, %llu culled; %llu false culls, "
+      "%llu late entries, %llu closest / %llu any mismatches culled vs unculled (%llu hits off their triangle, "
+      "%llu differences they cause)\n",
+      name.c_str(), mode, (unsigned long long)t.rays, (unsigned long long)t.points, (unsigned long long)t.pairs,
+      (unsigned long long)t.hit_pairs, (unsigned long long)t.culled_pairs, (unsigned long long)t.false_culls,
+      (unsigned long long)t.late_entries, (unsigned long long)t.closest_mismatches, (unsigned long long)t.any_mismatches,
+      (unsigned long long)t.unreal_hits, (unsigned long long)t.unreal_mismatches);
   if (!t.first_unreal.empty()) std::printf("[  culling ]   first hit off its triangle: %s\n", t.first_unreal.c_str());
   std::fflush(stdout);
 }
@@ -450,8 +451,8 @@ TEST_F(Culling, NoFalseCullsOnFlatTinyAndForcedResolutions) {
        one_mesh("tilted", {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0}, {0, 1, 2, 0, 2, 3},
                 {{"rotation", {0.2297529, 0.0, 0.0, 0.9732489}}, {"translation", {0.3, -2.0, 5.0}}}),
        15000, 1},
-      {"TinyTriangle", one_mesh("tiny", {0.3f, 0.7f, -0.2f, 0.30004f, 0.7f, -0.2f, 0.3f, 0.70003f, -0.19999f}, {0, 1, 2}),
-       15000, 1},
+      {"TinyTriangle", one_mesh("tiny", {0.3f, 0.7f, -0.2f, 0.30004f, 0.7f, -0.2f, 0.3f, 0.70003f, -0.19999f}, {0, 1, 2}), 15000,
+       1},
       // Float-representable (3000000.25, the value 3000000.3 was rounded to before format 4.0): the ray
       // generator places float origins within 1e-3 of the triangle, which 3000000.3 itself (0.05 off the
       // float grid) would put out of reach. Unrepresentable translations: test_far_instances.cpp.
@@ -518,5 +519,6 @@ TEST_F(Culling, ThinVoxelizationHasFalseCulls) {
   EXPECT_GE(scenes_with_false_culls, 5u);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -26,10 +26,11 @@
 #include "trace/trace.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
-constexpr double kRadius = 5000;               // local units (mm)
-constexpr double kScale = 1e-3;                // to metres
+constexpr double kRadius = 5000;                // local units (mm)
+constexpr double kScale = 1e-3;                 // to metres
 constexpr double kSize = 2 * kRadius * kScale;  // the model's world diameter: 10
 constexpr double kTolerance = 1e-5 * kSize;     // TESTING.md stability 9
 constexpr size_t kRaysPerInstance = 1500;
@@ -43,12 +44,11 @@ struct Placement {
 // Five placements of one closed icosphere (four nodes of mesh 0: instanced) and one of mesh 1 (used
 // once: a piece of a batching point). Index = scene instance (node order).
 const std::vector<Placement>& placements() {
-  static const std::vector<Placement> p = {
-      {"far TRS rotated", {3000000.3, -2000000.7, 1000000.1}, true},
-      {"far TRS mirrored", {-2999999.9, 2000000.35, -1000000.05}, true},
-      {"far matrix rotated", {148376.13, 1234.567, -223423.71}, true},
-      {"origin TRS rotated", {0.3, -0.7, 0.1}, false},
-      {"far piece (unique mesh)", {1000000.7, 3000000.3, -2000000.1}, true}};
+  static const std::vector<Placement> p = {{"far TRS rotated", {3000000.3, -2000000.7, 1000000.1}, true},
+                                           {"far TRS mirrored", {-2999999.9, 2000000.35, -1000000.05}, true},
+                                           {"far matrix rotated", {148376.13, 1234.567, -223423.71}, true},
+                                           {"origin TRS rotated", {0.3, -0.7, 0.1}, false},
+                                           {"far piece (unique mesh)", {1000000.7, 3000000.3, -2000000.1}, true}};
   return p;
 }
 
@@ -60,9 +60,8 @@ std::array<double, 4> unit_quat(double x, double y, double z, double w) {
 // Row-major 3x3 of a unit quaternion (x, y, z, w).
 std::array<double, 9> rotation(const std::array<double, 4>& q) {
   const double x = q[0], y = q[1], z = q[2], w = q[3];
-  return {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
-          2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-          2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
+  return {1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), 2 * (x * y + z * w),    1 - 2 * (x * x + z * z),
+          2 * (y * z - x * w),     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)};
 }
 
 std::string write_scene(const std::filesystem::path& dir) {
@@ -135,8 +134,8 @@ struct Tally {
 };
 
 // Per placement: how far each answer's hit point lies from the double reference's.
-std::vector<Tally> judge(const std::vector<fmt::Ray>& rays, const std::vector<size_t>& target,
-                         const std::vector<fmt::Hit>& ref, const std::vector<fmt::Hit>& got) {
+std::vector<Tally> judge(const std::vector<fmt::Ray>& rays, const std::vector<size_t>& target, const std::vector<fmt::Hit>& ref,
+                         const std::vector<fmt::Hit>& got) {
   std::vector<Tally> t(placements().size());
   for (size_t i = 0; i < rays.size(); ++i) {
     Tally& y = t[target[i]];
@@ -252,5 +251,6 @@ TEST(FarSmallInstances, AsExactAsAtTheOriginAgainstTheDoubleReference) {
   std::filesystem::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -19,7 +19,8 @@
 
 #include "tests/fuzz/reseal.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -60,9 +61,8 @@ std::string slurp(const fs::path& p) {
 
 class FuzzRegressions : public ::testing::Test {
  protected:
-  fs::path dir = fs::temp_directory_path() /
-                 ("rtp-fuzzreg-" + std::to_string(getpid()) + "-" +
-                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::path dir = fs::temp_directory_path() / ("rtp-fuzzreg-" + std::to_string(getpid()) + "-" +
+                                              ::testing::UnitTest::GetInstance()->current_test_info()->name());
   void SetUp() override { fs::create_directories(dir); }
   void TearDown() override { fs::remove_all(dir); }
   void expect(int code, const std::set<int>& allowed, const fs::path& input) {
@@ -104,13 +104,18 @@ TEST_F(FuzzRegressions, PackageInputsAreRejectedCleanly) {
   size_t mutants = 0, rejected = 0;
   for (const char* level : {"0", "1"}) {
     const fs::path pkg = dir / (std::string("seed-") + level + ".rtp");
-    ASSERT_EQ(run("rtpack-convert", "-q " + (kSource / "tests/fuzz/seeds/gltf/tiny.gltf").string() + " --zstd-level " +
-                                        level + " -o " + pkg.string(), dir), 0);
+    ASSERT_EQ(
+        run("rtpack-convert",
+            "-q " + (kSource / "tests/fuzz/seeds/gltf/tiny.gltf").string() + " --zstd-level " + level + " -o " + pkg.string(),
+            dir),
+        0);
     const auto good = read_bytes(pkg);
     for (int k = 0; k < 24; ++k) {
       auto bytes = good;
-      if (k < 8) bytes.resize(good.size() * size_t(k + 1) / 9);
-      else bytes[(good.size() * size_t(k - 8)) / 16 + size_t(k) * 37 % 4096 % good.size()] ^= uint8_t(1u << (k % 8));
+      if (k < 8)
+        bytes.resize(good.size() * size_t(k + 1) / 9);
+      else
+        bytes[(good.size() * size_t(k - 8)) / 16 + size_t(k) * 37 % 4096 % good.size()] ^= uint8_t(1u << (k % 8));
       rtp::fuzz::reseal_package(bytes);
       const fs::path in = dir / "mutant.rtp";
       write_bytes(in, bytes);
@@ -118,7 +123,8 @@ TEST_F(FuzzRegressions, PackageInputsAreRejectedCleanly) {
       const int verify = run("rtpack-inspect", "--verify " + in.string(), dir);
       expect(verify, {0, 3}, label);
       rejected += verify == 3;
-      expect(run("rtpack-trace", in.string() + " --rays " + rays.string() + " --hits " + (dir / "h").string(), dir), {0, 3}, label);
+      expect(run("rtpack-trace", in.string() + " --rays " + rays.string() + " --hits " + (dir / "h").string(), dir), {0, 3},
+             label);
       ++mutants;
     }
   }
@@ -139,28 +145,36 @@ TEST_F(FuzzRegressions, PackageInputsAreRejectedCleanly) {
 TEST_F(FuzzRegressions, RayInputsTraceCleanly) {
   const auto files = regressions("rays");
   const fs::path pkg = dir / "suzanne.rtp";
-  ASSERT_EQ(run("rtpack-convert", "-q " + (kSource / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string() +
-                                      " --attributes normal,uv -o " + pkg.string(), dir), 0);
+  ASSERT_EQ(
+      run("rtpack-convert",
+          "-q " + (kSource / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string() + " --attributes normal,uv -o " + pkg.string(),
+          dir),
+      0);
   // Hostile rays of the fuzzer's seeds (docs/fuzzing.md): NaN, ±inf, zero and denormal directions, tnear >
   // tfar, tnear = inf, huge origins; whole records trace (exit 0), a partial record is refused (exit 3).
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
   const float den = std::numeric_limits<float>::denorm_min();
-  const std::vector<std::array<float, 8>> hostile = {
-      {0, 0, 5, 0, 0, 0, -1, inf},   {0, 0, 5, 0, nan, 0, -1, inf}, {0, 0, 5, 0, inf, 0, -1, inf},
-      {0, 0, 5, 0, 0, 0, 0, inf},    {0, 0, 5, 0, den, den, -den, inf}, {0, 0, 5, 2, 0, 0, -1, 1},
-      {0, 0, 5, inf, 0, 0, -1, inf}, {3e38f, -3e38f, 3e38f, 0, -1, 1, -1, inf}, {nan, 0, 5, 0, 0, 0, -1, nan}};
+  const std::vector<std::array<float, 8>> hostile = {{0, 0, 5, 0, 0, 0, -1, inf},       {0, 0, 5, 0, nan, 0, -1, inf},
+                                                     {0, 0, 5, 0, inf, 0, -1, inf},     {0, 0, 5, 0, 0, 0, 0, inf},
+                                                     {0, 0, 5, 0, den, den, -den, inf}, {0, 0, 5, 2, 0, 0, -1, 1},
+                                                     {0, 0, 5, inf, 0, 0, -1, inf},     {3e38f, -3e38f, 3e38f, 0, -1, 1, -1, inf},
+                                                     {nan, 0, 5, 0, 0, 0, -1, nan}};
   std::vector<uint8_t> all(hostile.size() * 32);
   std::memcpy(all.data(), hostile.data(), all.size());
   write_bytes(dir / "hostile.rays", all);
-  expect(run("rtpack-trace", pkg.string() + " --rays " + (dir / "hostile.rays").string() + " --shading " +
-                                 (dir / "s").string() + " --hits " + (dir / "h").string(), dir), {0}, "hostile.rays");
+  expect(run("rtpack-trace",
+             pkg.string() + " --rays " + (dir / "hostile.rays").string() + " --shading " + (dir / "s").string() + " --hits " +
+                 (dir / "h").string(),
+             dir),
+         {0}, "hostile.rays");
   all.pop_back();
   write_bytes(dir / "partial.rays", all);
-  expect(run("rtpack-trace", pkg.string() + " --rays " + (dir / "partial.rays").string() + " --hits " + (dir / "h").string(), dir),
-         {3}, "partial.rays");
+  expect(
+      run("rtpack-trace", pkg.string() + " --rays " + (dir / "partial.rays").string() + " --hits " + (dir / "h").string(), dir),
+      {3}, "partial.rays");
   for (const auto& f : files)
-    expect(run("rtpack-trace", pkg.string() + " --rays " + f.string() + " --hits " + (dir / "h").string(), dir),
-           {0, 3}, f);
+    expect(run("rtpack-trace", pkg.string() + " --rays " + f.string() + " --hits " + (dir / "h").string(), dir), {0, 3}, f);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

@@ -23,7 +23,8 @@
 #include "core/math.h"
 #include "scene/import.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -107,7 +108,8 @@ std::vector<NodeWorld> world_nodes(const json& doc) {
 
 uint64_t mesh_triangles(const json& doc, size_t mesh) {
   uint64_t t = 0;
-  for (const json& p : doc["meshes"][mesh]["primitives"]) t += doc["accessors"][p["indices"].get<size_t>()]["count"].get<uint64_t>() / 3;
+  for (const json& p : doc["meshes"][mesh]["primitives"])
+    t += doc["accessors"][p["indices"].get<size_t>()]["count"].get<uint64_t>() / 3;
   return t;
 }
 
@@ -141,9 +143,10 @@ class Generator : public ::testing::Test {
 };
 
 TEST_F(Generator, SameArgumentsSameBytes) {
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      {"gallery", "gallery"}, {"forest --count 2000 --seed 7 --refine 0", "forest"}, {"far", "far"},
-      {"far --base forest --count 500 --refine 0", "far_forest"}};
+  const std::vector<std::pair<std::string, std::string>> cases = {{"gallery", "gallery"},
+                                                                  {"forest --count 2000 --seed 7 --refine 0", "forest"},
+                                                                  {"far", "far"},
+                                                                  {"far --base forest --count 500 --refine 0", "far_forest"}};
   for (const auto& [args, name] : cases) {
     ASSERT_EQ(run(args + " -o " + quote(out(name + "_a.glb").string())), 0) << args;
     ASSERT_EQ(run(args + " -o " + quote(out(name + "_b.glb").string())), 0) << args;
@@ -276,8 +279,7 @@ TEST_F(Generator, ForestStructure) {
   EXPECT_EQ(instances, uint64_t(count));
   EXPECT_EQ(short_rotations, 1);
   EXPECT_GE(cameras, 1);
-  EXPECT_NE(stdout_text().find("instanced_triangles=" + std::to_string(instanced) + " "), std::string::npos)
-      << stdout_text();
+  EXPECT_NE(stdout_text().find("instanced_triangles=" + std::to_string(instanced) + " "), std::string::npos) << stdout_text();
 }
 
 TEST_F(Generator, RefineMultipliesTrianglesByFour) {
@@ -367,7 +369,8 @@ TEST_F(Generator, ImportForest) {
   uint64_t expected = 0;
   for (const json& n : doc["nodes"])
     if (n.contains("mesh"))
-      expected += doc["accessors"][n["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"].get<size_t>()]["count"].get<uint64_t>() *
+      expected += doc["accessors"][n["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"].get<size_t>()]["count"]
+                      .get<uint64_t>() *
                   mesh_triangles(doc, n["mesh"].get<size_t>());
   EXPECT_EQ(instanced, expected);
   EXPECT_EQ(scene.instanced_triangles(), expected);
@@ -418,4 +421,5 @@ TEST_F(Generator, ImportFar) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

@@ -20,7 +20,8 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -30,12 +31,10 @@ std::set<std::string> listing(const fs::path& d) {
   return names;
 }
 
-void write_bytes(const fs::path& p, const std::string& bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
-}
+void write_bytes(const fs::path& p, const std::string& bytes) { std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes; }
 
 bool is_char_device(const fs::path& p) {
-  struct stat st{};
+  struct stat st {};
   return ::lstat(p.c_str(), &st) == 0 && S_ISCHR(st.st_mode);
 }
 
@@ -148,14 +147,14 @@ INSTANTIATE_TEST_SUITE_P(Signals, InterruptedWrite,
                                            SignalCase{SIGTERM, false, "rtpack-convert"},
                                            SignalCase{SIGINT, false, "rtpack-convert"},
                                            SignalCase{SIGTERM, true, "rtpack-convert"},
-                                           SignalCase{SIGINT, true, "rtpack-convert"},
-                                           SignalCase{SIGHUP, true, "rtpack-convert"},
-                                           SignalCase{SIGKILL, false, "rtpack-trace"},
-                                           SignalCase{SIGTERM, true, "rtpack-trace"}),
+                                           SignalCase{SIGINT, true, "rtpack-convert"}, SignalCase{SIGHUP, true, "rtpack-convert"},
+                                           SignalCase{SIGKILL, false, "rtpack-trace"}, SignalCase{SIGTERM, true, "rtpack-trace"}),
                          [](const auto& info) {
                            return std::string(info.param.tool[7] == 'c' ? "Convert" : "Trace") +
-                                  (info.param.sig == SIGKILL ? "Kill" : info.param.sig == SIGTERM ? "Term"
-                                                                        : info.param.sig == SIGINT ? "Int" : "Hup") +
+                                  (info.param.sig == SIGKILL   ? "Kill"
+                                   : info.param.sig == SIGTERM ? "Term"
+                                   : info.param.sig == SIGINT  ? "Int"
+                                                               : "Hup") +
                                   (info.param.named_fallback ? "NamedTemporary" : "Tmpfile");
                          });
 
@@ -231,9 +230,9 @@ TEST_F(HardeningFiles, ConvertAndMakeSceneRefuseToOverwriteABufferTheyRead) {
     fs::copy_file(fs::path(RTP_SOURCE_DIR) / "samples/khronos/Suzanne/glTF" / f, in / f);
   const std::string gltf = (in / "Suzanne.gltf").string(), bin = (in / "Suzanne.bin").string();
   const std::string before = slurp_file(bin);
-  for (const std::vector<std::string>& args :
-       {std::vector<std::string>{"rtpack-convert", "-q", gltf, "-o", bin},
-        std::vector<std::string>{"rtpack-make-scene", "gallery", "--count", "2", "--mesh", gltf, "-o", (in / "." / "Suzanne.bin").string()}}) {
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"rtpack-convert", "-q", gltf, "-o", bin},
+                                               std::vector<std::string>{"rtpack-make-scene", "gallery", "--count", "2", "--mesh",
+                                                                        gltf, "-o", (in / "." / "Suzanne.bin").string()}}) {
     const ToolResult r = tool(args[0], std::vector<std::string>(args.begin() + 1, args.end()));
     EXPECT_EQ(r.code, 1) << args[0] << ": " << r.err;
     EXPECT_NE(r.err.find("Suzanne.bin' (same device and inode)"), std::string::npos) << args[0] << ": " << r.err;
@@ -283,8 +282,15 @@ TEST_F(HardeningFiles, MadeCameraRaysAppearOnlyWhenTheTraceSucceeds) {
     f.seekp(std::streamoff(at));
     f.put(char(c ^ 0x10));
   }
-  const std::vector<std::string> args = {p, "--make-camera-rays", "8x8", "--rays", (out / "cam.rays").string(),
-                                         "--hits", (out / "h.bin").string(), "--memory-budget", "1MiB"};
+  const std::vector<std::string> args = {p,
+                                         "--make-camera-rays",
+                                         "8x8",
+                                         "--rays",
+                                         (out / "cam.rays").string(),
+                                         "--hits",
+                                         (out / "h.bin").string(),
+                                         "--memory-budget",
+                                         "1MiB"};
   const ToolResult bad = tool("rtpack-trace", args);
   EXPECT_EQ(bad.code, 3) << bad.err;
   EXPECT_NE(bad.err.find("checksum mismatch"), std::string::npos) << bad.err;
@@ -305,7 +311,7 @@ TEST_F(HardeningFiles, TraceNamesTheFirstInvalidRay) {
   std::memcpy(r1, rays.data() + 32, 32);
   std::memcpy(r3, rays.data() + 96, 32);
   r1[4] = std::numeric_limits<float>::quiet_NaN();  // ray 1: a NaN direction
-  r3[3] = 2, r3[7] = 1;                               // ray 3: tnear > tfar
+  r3[3] = 2, r3[7] = 1;                             // ray 3: tnear > tfar
   rays.replace(32, 32, reinterpret_cast<const char*>(r1), 32);
   rays.replace(96, 32, reinterpret_cast<const char*>(r3), 32);
   write_bytes(in / "bad.rays", rays);
@@ -330,10 +336,9 @@ TEST_F(HardeningFiles, TraceNamesTheFirstInvalidRay) {
 TEST_F(HardeningFiles, GltfInputMustBeARegularFile) {
   ASSERT_EQ(::mkfifo((in / "fifo.glb").c_str(), 0644), 0);
   fs::create_directories(in / "dir.glb");
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      {(in / "dir.glb").string(), "is a directory"},
-      {(in / "fifo.glb").string(), "is not a regular file (a FIFO)"},
-      {"/dev/zero", "is not a regular file (a character device)"}};
+  const std::vector<std::pair<std::string, std::string>> cases = {{(in / "dir.glb").string(), "is a directory"},
+                                                                  {(in / "fifo.glb").string(), "is not a regular file (a FIFO)"},
+                                                                  {"/dev/zero", "is not a regular file (a character device)"}};
   for (const auto& [path, msg] : cases) {
     const ToolResult r = tool("rtpack-convert", {"--dry-run", path}, {}, 20);
     EXPECT_FALSE(r.timed_out) << path << " blocked";
@@ -418,11 +423,12 @@ TEST_F(BufferPaths, EtcPasswdIsNeverRead) {
   d["buffers"] = {{{"byteLength", b.bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(b.bin)}},
                   {{"byteLength", size}, {"uri", "../../../../../../../../../../etc/passwd"}}};
   d["bufferViews"].push_back({{"buffer", 1}, {"byteLength", 24}});
-  d["accessors"].push_back({{"bufferView", int(d["bufferViews"].size() - 1)}, {"componentType", 5126}, {"type", "VEC2"}, {"count", 3}});
+  d["accessors"].push_back(
+      {{"bufferView", int(d["bufferViews"].size() - 1)}, {"componentType", 5126}, {"type", "VEC2"}, {"count", 3}});
   d["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = int(d["accessors"].size() - 1);
   std::ofstream(scene_dir / "s.gltf", std::ios::binary) << d.dump();
-  const ToolResult r = tool("rtpack-convert",
-                            {"-q", (scene_dir / "s.gltf").string(), "-o", (out / "p.rtp").string(), "--attributes", "uv"});
+  const ToolResult r =
+      tool("rtpack-convert", {"-q", (scene_dir / "s.gltf").string(), "-o", (out / "p.rtp").string(), "--attributes", "uv"});
   EXPECT_EQ(r.code, 3) << r.err;
   EXPECT_NE(r.err.find("/buffers/1/uri"), std::string::npos) << r.err;
   EXPECT_TRUE(listing(out).empty());
@@ -450,7 +456,8 @@ TEST_F(BufferPaths, SymlinkEscapeIsRefusedUnlessAllowed) {
 
 TEST_F(BufferPaths, OversizedExternalBufferIsRejectedBeforeReading) {
   const std::string g = gltf_with_uri("big.bin", b.bin.size());
-  std::ofstream(scene_dir / "big.bin", std::ios::binary).write(reinterpret_cast<const char*>(b.bin.data()), std::streamsize(b.bin.size()));
+  std::ofstream(scene_dir / "big.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.bin.data()), std::streamsize(b.bin.size()));
   fs::resize_file(scene_dir / "big.bin", uint64_t(384) << 20);
   const ToolResult r = dry_run(g);
   EXPECT_EQ(r.code, 3) << r.err;
@@ -469,7 +476,7 @@ TEST_F(HardeningFiles, GlbHeaderIsCheckedBeforeItsBody) {
   };
   const char* msgs[3] = {"extends past the end", "version 1", "header declares"};
   for (int i = 0; i < 3; ++i) {
-    const std::string p = i == 0 ? sparse_glb(2, uint32_t(size), 0xFFFFFF00u)
+    const std::string p = i == 0   ? sparse_glb(2, uint32_t(size), 0xFFFFFF00u)
                           : i == 1 ? sparse_glb(1, uint32_t(size), 100)
                                    : sparse_glb(2, 0xFFFFFFF0u, 100);
     const ToolResult r = tool("rtpack-convert", {"--dry-run", p});
@@ -495,10 +502,12 @@ TEST_F(HardeningFiles, NonUtf8FileNamesWork) {
   const ToolResult j = tool("rtpack-inspect", {pkg, "--json"});
   EXPECT_EQ(j.code, 0) << j.err;
   write_bytes(in / "r\xFF.bin", four_rays());
-  const ToolResult t = tool("rtpack-trace", {pkg, "--rays", (in / "r\xFF.bin").string(), "--hits", (out / "h\xFF.bin").string(), "--json"});
+  const ToolResult t =
+      tool("rtpack-trace", {pkg, "--rays", (in / "r\xFF.bin").string(), "--hits", (out / "h\xFF.bin").string(), "--json"});
   EXPECT_EQ(t.code, 0) << t.err;
   EXPECT_EQ(fs::file_size(out / "h\xFF.bin"), 4u * 20u);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

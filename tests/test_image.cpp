@@ -12,7 +12,8 @@
 #include "image/image.h"
 
 namespace rtp::image {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -86,8 +87,10 @@ TEST(Image, MissesAreBackgroundAndDepthIsMonotone) {
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> t(1.f, 50.f);
   for (size_t i = 0; i < g.hits.size(); ++i) {
-    if (i % 5 == 0) g.hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
-    else g.hits[i].t = t(rng);
+    if (i % 5 == 0)
+      g.hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
+    else
+      g.hits[i].t = t(rng);
   }
   const Rgb8 img = shade(g.rays.data(), g.hits.data(), 16, 16, Shade::kDepth);
   float tmin = kInf, tmax = 0;
@@ -145,5 +148,6 @@ TEST(Image, ParseShade) {
   EXPECT_FALSE(parse_shade("Normal", &s));
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::image

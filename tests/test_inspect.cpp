@@ -26,7 +26,8 @@
 #include "voxel/voxel.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -68,8 +69,8 @@ struct ToolRun {
 };
 
 ToolRun inspect(const std::string& args, const fs::path& dir) {
-  const std::string cmd = std::string(RTP_BINARY_DIR) + "/rtpack-inspect " + args + " > " + (dir / "out").string() + " 2> " +
-                          (dir / "err").string();
+  const std::string cmd =
+      std::string(RTP_BINARY_DIR) + "/rtpack-inspect " + args + " > " + (dir / "out").string() + " 2> " + (dir / "err").string();
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
 }
@@ -132,8 +133,8 @@ TEST_F(Inspect, TextReportNamesEverySection) {
   const ToolRun r = inspect("--verify --chunks " + p.path, dir);
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* s : {"triangles     15,366 unique, 9,219,600 instanced", "chunk sizes", "mesh segment (on demand)",
-                        "batching points ", "triangles (unique + instanced) per point", "mesh segments ", "segment meshes:",
-                        "instance BVHs:", "c_box", "verify: OK", "perspective", "DAG pool (resident)",
+                        "batching points ", "triangles (unique + instanced) per point", "mesh segments ",
+                        "segment meshes:", "instance BVHs:", "c_box", "verify: OK", "perspective", "DAG pool (resident)",
                         "culling DAGs    pool ", "  resolutions   ", "  sharing       ", "  set cells     "})
     EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
 }
@@ -158,15 +159,16 @@ void corrupt_nodes(uint8_t* chunk, fmt::SectionType type, const std::function<vo
 std::vector<Corruption> corruptions() {
   using fmt::SectionType;
   std::vector<Corruption> c;
-  c.push_back({"piece prim id duplicated", kLantern, fmt::ChunkKind::kBatchingPoint, 3, "stored more than once",
-               [](uint8_t* chunk) {
-                 fmt::MeshEntry* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
-                 fmt::LeafBlock<8>* b = section<fmt::LeafBlock<8>>(chunk, SectionType::kBlocks) + e[0].block_first;
-                 ASSERT_GE(e[0].block_count, 2u);
-                 b[0].prim[0] = b[1].prim[0];
-               }});
+  c.push_back(
+      {"piece prim id duplicated", kLantern, fmt::ChunkKind::kBatchingPoint, 3, "stored more than once", [](uint8_t* chunk) {
+         fmt::MeshEntry* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
+         fmt::LeafBlock<8>* b = section<fmt::LeafBlock<8>>(chunk, SectionType::kBlocks) + e[0].block_first;
+         ASSERT_GE(e[0].block_count, 2u);
+         b[0].prim[0] = b[1].prim[0];
+       }});
   c.push_back({"piece box coordinate", kLantern, fmt::ChunkKind::kBatchingPoint, 2, "not inside", [](uint8_t* chunk) {
-                 corrupt_nodes<8>(chunk, SectionType::kNodes, [](fmt::WideNode<8>& n) { n.lo[0][0] = (n.lo[0][0] + n.hi[0][0]) / 2; });
+                 corrupt_nodes<8>(chunk, SectionType::kNodes,
+                                  [](fmt::WideNode<8>& n) { n.lo[0][0] = (n.lo[0][0] + n.hi[0][0]) / 2; });
                }});
   c.push_back({"piece child reference", kLantern, fmt::ChunkKind::kBatchingPoint, 1, "out of range", [](uint8_t* chunk) {
                  corrupt_nodes<8>(chunk, SectionType::kNodes, [](fmt::WideNode<8>& n) { n.child[0] = 0x7FFFFFF0u; });
@@ -189,13 +191,11 @@ std::vector<Corruption> corruptions() {
                    }
                  FAIL() << "no padded block";
                }});
-  c.push_back({"segment prim id", kForest, fmt::ChunkKind::kMeshSegment, 0, "prim 16777215 out of range", [](uint8_t* chunk) {
-                 section<fmt::LeafBlock<8>>(chunk, SectionType::kBlocks)[5].prim[0] = 0x00FFFFFFu;
-               }});
+  c.push_back({"segment prim id", kForest, fmt::ChunkKind::kMeshSegment, 0, "prim 16777215 out of range",
+               [](uint8_t* chunk) { section<fmt::LeafBlock<8>>(chunk, SectionType::kBlocks)[5].prim[0] = 0x00FFFFFFu; }});
   c.push_back({"instance BVH box", kForest, fmt::ChunkKind::kBatchingPoint, 4, "instance BVH", [](uint8_t* chunk) {
-                 corrupt_nodes<8>(chunk, SectionType::kInstanceNodes, [](fmt::WideNode<8>& n) {
-                   n.hi[2][0] = n.lo[2][0] + (n.hi[2][0] - n.lo[2][0]) / 4;
-                 });
+                 corrupt_nodes<8>(chunk, SectionType::kInstanceNodes,
+                                  [](fmt::WideNode<8>& n) { n.hi[2][0] = n.lo[2][0] + (n.hi[2][0] - n.lo[2][0]) / 4; });
                }});
   c.push_back({"instance id duplicated", kForest, fmt::ChunkKind::kBatchingPoint, 5, "referenced", [](uint8_t* chunk) {
                  uint32_t* ids = section<uint32_t>(chunk, SectionType::kInstanceIds);
@@ -207,14 +207,12 @@ std::vector<Corruption> corruptions() {
                }});
   // SPEC §2.5: the instance table names where each record is; a wrong place is caught by --verify (a
   // local index), or at decode by every reader (a point out of range).
-  c.push_back({"instance table local index", kForest, fmt::ChunkKind::kInstances, 0, "places", [](uint8_t* chunk) {
-                 section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[3].local ^= 1;
-               }});
+  c.push_back({"instance table local index", kForest, fmt::ChunkKind::kInstances, 0, "places",
+               [](uint8_t* chunk) { section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[3].local ^= 1; }});
   c.push_back({"instance table point", kForest, fmt::ChunkKind::kInstances, 0, "batching point 65536 out of range",
                [](uint8_t* chunk) { section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[2].point = 65536; }});
-  c.push_back({"top-level parent pointer", kForest, fmt::ChunkKind::kTopLevelBvh, 0, "child 1 names parent", [](uint8_t* chunk) {
-                 section<fmt::TopNode>(chunk, SectionType::kTopNodes)[1].slot ^= 1;
-               }});
+  c.push_back({"top-level parent pointer", kForest, fmt::ChunkKind::kTopLevelBvh, 0, "child 1 names parent",
+               [](uint8_t* chunk) { section<fmt::TopNode>(chunk, SectionType::kTopNodes)[1].slot ^= 1; }});
   return c;
 }
 
@@ -353,7 +351,7 @@ TEST_F(Inspect, DagBlockMatchesThePoolChunkAndTheConverter) {
     EXPECT_EQ(dag["set_cells"], set_cells);
     EXPECT_EQ(dag["separate_bytes"], separate);
     EXPECT_EQ(separate, p.report.dag_separate_bytes);  // = each point's DAG as the converter built it alone
-    EXPECT_GE(separate, raw);  // the pool is the union of every point's DAG
+    EXPECT_GE(separate, raw);                          // the pool is the union of every point's DAG
     EXPECT_NEAR(dag["sharing"].get<double>(), double(separate) / double(raw), 1e-12);
     EXPECT_NEAR(dag["bytes_per_point"].get<double>(), double(raw) / double(d.grids.size()), 1e-9);
     EXPECT_EQ(dag["malformed_grids"], 0u);
@@ -401,7 +399,7 @@ bool names(const std::string& out, const std::string& label, const std::string& 
 TEST_F(Inspect, DagCorruptionIsNamedByBatchingPointWithExitCode3) {
   struct Case {
     const char* name;
-    fmt::ChunkKind kind;  // the chunk edited and named (0: the header)
+    fmt::ChunkKind kind;                                           // the chunk edited and named (0: the header)
     std::function<std::string(uint8_t*, const StoredDags&)> edit;  // returns "who" (the batching point)
     const char* expect;
   };
@@ -454,7 +452,8 @@ TEST_F(Inspect, DagCorruptionIsNamedByBatchingPointWithExitCode3) {
     const ToolRun r = inspect("--verify " + p.path, dir);
     EXPECT_EQ(r.code, 3) << r.out;
     EXPECT_NE(r.out.find("verify: FAILED"), std::string::npos) << r.out;
-    EXPECT_TRUE(names(r.out, label, who, c.expect)) << "expected '" << label << ": " << who << "... " << c.expect << "' in\n" << r.out;
+    EXPECT_TRUE(names(r.out, label, who, c.expect)) << "expected '" << label << ": " << who << "... " << c.expect << "' in\n"
+                                                    << r.out;
     // Plain rtpack-inspect refuses what the tracer refuses (exit 3, same message); the statistics still print.
     const ToolRun plain = inspect(p.path, dir);
     EXPECT_EQ(plain.code, 3);
@@ -488,7 +487,8 @@ void expect_same_stats(const Mesh& m) {
   ck.problems = &problems;
   ck.label = m.name;
   ck.prims = &prims;
-  const BvhShape s = mesh_bvh_shape<W, B>(bvh.nodes.data(), bvh.nodes.size(), bvh.blocks.data(), bvh.blocks.size(), bvh.root, &ck);
+  const BvhShape s =
+      mesh_bvh_shape<W, B>(bvh.nodes.data(), bvh.nodes.size(), bvh.blocks.data(), bvh.blocks.size(), bvh.root, &ck);
   EXPECT_EQ(problems.count(), 0u) << (problems.listed().empty() ? "" : problems.listed()[0]);
   EXPECT_EQ(prims.size(), m.triangle_count());
   EXPECT_NEAR(s.c_box, bvh.stats.c_box, 1e-9 * bvh.stats.c_box);
@@ -512,5 +512,6 @@ TEST_F(Inspect, BvhStatisticsMatchTheBuilder) {
     }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

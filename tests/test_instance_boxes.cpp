@@ -16,7 +16,8 @@
 #include "voxel/instance_boxes.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -170,5 +171,6 @@ TEST(InstanceBoxes, CheckRefusesMalformedProxies) {
   EXPECT_TRUE(voxel::dag_enter(t.grid, none, r)) << "without nodes nothing is culled";
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -12,7 +12,8 @@
 #include "mesh/shapes.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 void expect_same_mesh(const Mesh& a, const Mesh& b) {
   EXPECT_EQ(a.positions, b.positions);
@@ -74,12 +75,12 @@ TEST(MeshClean, OpenGridCountsBoundaryEdges) {
 
 TEST(MeshClean, DropsRepeatedIndexAndZeroAreaTriangles) {
   Mesh m = make_cube();
-  m.positions.push_back({0, 0, 5});   // 8
-  m.positions.push_back({1, 1, 6});   // 9
-  m.positions.push_back({2, 2, 7});   // 10: collinear with 8, 9
-  add_tri(m, 0, 0, 1);                // repeated index
-  add_tri(m, 8, 9, 10);               // zero area
-  add_tri(m, 3, 3, 3);                // all the same
+  m.positions.push_back({0, 0, 5});  // 8
+  m.positions.push_back({1, 1, 6});  // 9
+  m.positions.push_back({2, 2, 7});  // 10: collinear with 8, 9
+  add_tri(m, 0, 0, 1);               // repeated index
+  add_tri(m, 8, 9, 10);              // zero area
+  add_tri(m, 3, 3, 3);               // all the same
   CleanReport r = clean_mesh(m);
   EXPECT_EQ(r.degenerate_removed, 3u);
   EXPECT_EQ(r.nonfinite_removed, 0u);
@@ -276,7 +277,7 @@ TEST(MeshClean, WeldDistanceIsLInfinity) {
 TEST(MeshClean, WeldingCanMakeTrianglesDegenerate) {
   // A sliver whose short edge is shorter than eps collapses and is removed after welding.
   Mesh m = make_grid(1, 1);
-  m.positions.push_back({0.5f, 2, 0});  // 4
+  m.positions.push_back({0.5f, 2, 0});     // 4
   m.positions.push_back({0.5001f, 2, 0});  // 5, 1e-4 from 4
   add_tri(m, 2, 4, 5);
   CleanReport r = clean_mesh(m, {.weld_eps = 1e-3});
@@ -317,8 +318,7 @@ void expect_corners_kept(const Mesh& before, const Mesh& after) {
   ASSERT_EQ(after.uvs.size(), before.uvs.empty() ? 0 : after.positions.size());
   for (size_t t = 0; t < after.triangle_count(); ++t)
     for (int k = 0; k < 3; ++k)
-      ASSERT_EQ(corner(after, t, k), corner(before, after.source[t].triangle, k))
-          << "triangle " << t << " corner " << k;
+      ASSERT_EQ(corner(after, t, k), corner(before, after.source[t].triangle, k)) << "triangle " << t << " corner " << k;
 }
 
 // A distinct normal and uv per vertex, derived from its number.
@@ -376,8 +376,7 @@ Mesh hard_edged_cube(float jitter) {
   const Mesh cube = make_cube();
   for (size_t t = 0; t < m.triangle_count(); ++t) {
     const Vec3d a = to_d(cube.positions[cube.indices[3 * t]]);
-    const Vec3d n = cross(to_d(cube.positions[cube.indices[3 * t + 1]]) - a,
-                          to_d(cube.positions[cube.indices[3 * t + 2]]) - a);
+    const Vec3d n = cross(to_d(cube.positions[cube.indices[3 * t + 1]]) - a, to_d(cube.positions[cube.indices[3 * t + 2]]) - a);
     const Vec3d u = n * (1.0 / length(n));
     for (int k = 0; k < 3; ++k) {
       const Vec3f p = cube.positions[cube.indices[3 * t + k]];
@@ -509,5 +508,6 @@ TEST(MeshClean, EdgeCountsMatchTheirDefinitionOnRandomSoups) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -10,7 +10,8 @@
 #include "mesh/shapes.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 // A triangle by value: its three corner positions and its source entry.
 using TriKey = std::tuple<std::array<float, 9>, uint32_t, uint32_t>;
@@ -174,5 +175,6 @@ TEST(MeshSplit, PiecesCarryAttributes) {
   EXPECT_THROW(split_mesh(bad, 40), Error);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -15,7 +15,8 @@
 #endif
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 uint64_t pow4(int n) { return uint64_t(1) << (2 * n); }
 
@@ -182,9 +183,7 @@ TEST(MeshSubdivide, AdaptiveLargestInstanceScaleDrivesTheLevel) {
   ASSERT_EQ(once.positions.size(), s.meshes[0].positions.size());
   ASSERT_EQ(once.indices.size(), s.meshes[0].indices.size());
   for (size_t i = 0; i < once.indices.size(); ++i)
-    ASSERT_NEAR(length(to_d(once.positions[once.indices[i]]) -
-                       to_d(s.meshes[0].positions[s.meshes[0].indices[i]])),
-                0, 1e-6)
+    ASSERT_NEAR(length(to_d(once.positions[once.indices[i]]) - to_d(s.meshes[0].positions[s.meshes[0].indices[i]])), 0, 1e-6)
         << "corner " << i;
 
   // Only the scale-1 instance: fewer levels.
@@ -224,8 +223,8 @@ TEST(MeshSubdivide, AdaptiveLeavesShortAndUninstancedMeshesUntouched) {
   Scene s = two_instance_scene(3);
   Mesh tiny = make_icosphere(1);
   for (Vec3f& p : tiny.positions) p = {p.x * 0.01f, p.y * 0.01f, p.z * 0.01f};
-  s.meshes.push_back(tiny);              // 1: instanced, already fine
-  s.meshes.push_back(make_icosphere(0)); // 2: no instance
+  s.meshes.push_back(tiny);               // 1: instanced, already fine
+  s.meshes.push_back(make_icosphere(0));  // 2: no instance
   Instance i;
   i.mesh = 1;
   s.instances.push_back(i);
@@ -413,5 +412,6 @@ TEST(MeshSubdivide, CleanAndSubdivideSuzanne) {
 }
 #endif
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

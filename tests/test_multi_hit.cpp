@@ -27,7 +27,8 @@
 #include "trace/trace.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 constexpr uint32_t kNs[] = {1, 2, 8, 64};
 constexpr int kLayers = 70;  // more than 64 surfaces along a vertical ray: N = 64 must cut the list
@@ -128,12 +129,11 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays) {
       trace_closest<W, W>(bvh.view(), rays.data(), closest.data(), n, o);
       std::vector<Multi> by_n;
       for (uint32_t N : kNs) {
-        const std::string what = "W=" + std::to_string(W) + " " + isa_name(isa) + " " + order_name(order) +
-                                 " N=" + std::to_string(N);
+        const std::string what =
+            "W=" + std::to_string(W) + " " + isa_name(isa) + " " + order_name(order) + " N=" + std::to_string(N);
         Multi cull{std::vector<fmt::Hit>(n * N), std::vector<uint32_t>(n)}, all = cull;
         trace_multi<W, W>(bvh.view(), rays.data(), n, N, cull.hits.data(), cull.counts.data(), o);
-        trace_multi<W, W>(bvh.view(), rays.data(), n, N, all.hits.data(), all.counts.data(), o,
-                          MultiHitMethod::kCollectAll);
+        trace_multi<W, W>(bvh.view(), rays.data(), n, N, all.hits.data(), all.counts.data(), o, MultiHitMethod::kCollectAll);
         expect_well_formed(rays, cull, N, what);
         // Node culling returns exactly the first N of the sorted all-hits list.
         ASSERT_EQ(cull.counts, all.counts) << what;
@@ -174,8 +174,8 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays) {
   EXPECT_GT(truncated, 100u) << "rays with more than 64 hits";
   EXPECT_GT(prim_ties, 100u) << "equal t within one instance (the stored-twice grid)";
   EXPECT_GT(instance_ties, 10u) << "equal t across instances (the coincident spheres)";
-  std::printf("[ multi-hit] W=%d: %zu rays, %zu cut at 64 hits, %zu ties by primitive, %zu ties by instance\n", W, n,
-              truncated, prim_ties, instance_ties);
+  std::printf("[ multi-hit] W=%d: %zu rays, %zu cut at 64 hits, %zu ties by primitive, %zu ties by instance\n", W, n, truncated,
+              prim_ties, instance_ties);
 }
 
 TEST(MultiHit, NClosestEqualTheSortedAllHitsPrefixOnEveryPath) {
@@ -252,8 +252,8 @@ TEST(MultiHit, AgreesHitForHitWithADoubleBruteForceList) {
         } else if (hit(tris[mine[k]], r, 1 + 1e-4, r.tnear - kTol, r.tfar + kTol, &t)) {
           ++ties;
         } else {
-          ADD_FAILURE() << isa_name(isa) << " ray " << i << ": rtpack's hit " << k << " (instance " << h[k].instance
-                        << ", prim " << h[k].prim << ", t " << h[k].t << ") is not near any double hit";
+          ADD_FAILURE() << isa_name(isa) << " ray " << i << ": rtpack's hit " << k << " (instance " << h[k].instance << ", prim "
+                        << h[k].prim << ", t " << h[k].t << ") is not near any double hit";
         }
       }
       const double last = m.counts[i] == N ? double(h[N - 1].t) : INFINITY;
@@ -351,7 +351,8 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   ASSERT_EQ(std::fwrite(rays.data(), sizeof(fmt::Ray), n, f), n);
   std::fclose(f);
   const std::string multi_path = (dir / "m.bin").string(), hits_path = (dir / "h.bin").string();
-  const ToolResult m = run_tool("rtpack-trace", {cs.output, "--rays", rays_path, "--hits", multi_path, "--multi-hit", "8", "--json"}, dir);
+  const ToolResult m =
+      run_tool("rtpack-trace", {cs.output, "--rays", rays_path, "--hits", multi_path, "--multi-hit", "8", "--json"}, dir);
   ASSERT_EQ(m.code, 0) << m.err;
   const ToolResult h = run_tool("rtpack-trace", {cs.output, "--rays", rays_path, "--hits", hits_path}, dir);
   ASSERT_EQ(h.code, 0) << h.err;
@@ -370,8 +371,10 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   EXPECT_EQ(std::memcmp(mh.data(), expect.hits.data(), mh.size() * sizeof(fmt::Hit)), 0);
   for (size_t i = 0; i < n; ++i) ASSERT_EQ(std::memcmp(&mh[i * 8], &ch[i], sizeof(fmt::Hit)), 0) << "ray " << i;
   const std::string ooc_path = (dir / "o.bin").string();
-  const ToolResult o = run_tool("rtpack-trace", {cs.output, "--rays", rays_path, "--hits", ooc_path, "--multi-hit", "8",
-                                                 "--memory-budget", std::to_string(minimum_budget(reader))}, dir);
+  const ToolResult o = run_tool("rtpack-trace",
+                                {cs.output, "--rays", rays_path, "--hits", ooc_path, "--multi-hit", "8", "--memory-budget",
+                                 std::to_string(minimum_budget(reader))},
+                                dir);
   ASSERT_EQ(o.code, 0) << o.err;
   EXPECT_EQ(read(ooc_path).size(), mh.size());
   EXPECT_EQ(std::memcmp(read(ooc_path).data(), mh.data(), mh.size() * sizeof(fmt::Hit)), 0) << "out of core";
@@ -380,9 +383,10 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   const auto j = nlohmann::json::parse(m.out);
   EXPECT_EQ(j["multi_hit"]["k"], 8);
   EXPECT_EQ(j["multi_hit"]["hits"].get<uint64_t>(), total);
-  for (const std::vector<std::string>& bad :
-       {std::vector<std::string>{"--multi-hit", "0"}, {"--multi-hit", "65"}, {"--multi-hit", "4", "--any"},
-        {"--multi-hit", "4", "--shading", (dir / "s.bin").string()}}) {
+  for (const std::vector<std::string>& bad : {std::vector<std::string>{"--multi-hit", "0"},
+                                              {"--multi-hit", "65"},
+                                              {"--multi-hit", "4", "--any"},
+                                              {"--multi-hit", "4", "--shading", (dir / "s.bin").string()}}) {
     std::vector<std::string> args = {cs.output, "--rays", rays_path, "--hits", (dir / "x.bin").string()};
     args.insert(args.end(), bad.begin(), bad.end());
     const ToolResult r = run_tool("rtpack-trace", args, dir);
@@ -392,5 +396,6 @@ TEST(MultiHit, ThroughThePackageAndRtpackTrace) {
   std::filesystem::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

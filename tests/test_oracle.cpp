@@ -22,7 +22,8 @@
 #include "oracle/reference.h"
 #include "scene/import.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace rtp;
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -73,12 +74,12 @@ TEST(OracleEmbree, HandSceneIdsTransformsAndBarycentrics) {
   const EmbreeOracle oracle(s, OracleQuality::kHigh);
   const BruteForceReference ref(s);
   std::vector<fmt::Ray> rays = {
-      ray(0.25f, 0.5f, 5, 0, 0, -1),         // instance 0: u = 0.25, v = 0.5, t = 5
-      ray(9, 0.5f, -3, 0, 0, 2),             // instance 1: local (0.25, 0.5), t = 1.5 (dir length 2)
-      ray(-5.5f, 0.5f, 0.5f, 1, 0, 0),       // into the mirrored cube from inside: hits its local x=0 face at t=0.5
-      ray(0.25f, 0.5f, 5, 0, 0, -1, 0, 4),   // tfar short of the triangle: miss
-      ray(0.25f, 0.5f, 5, 0, 0, -1, 6, 9),   // tnear past the triangle: miss
-      ray(0.9f, 0.9f, 5, 0, 0, -1),          // outside the triangle (u + v > 1): miss
+      ray(0.25f, 0.5f, 5, 0, 0, -1),        // instance 0: u = 0.25, v = 0.5, t = 5
+      ray(9, 0.5f, -3, 0, 0, 2),            // instance 1: local (0.25, 0.5), t = 1.5 (dir length 2)
+      ray(-5.5f, 0.5f, 0.5f, 1, 0, 0),      // into the mirrored cube from inside: hits its local x=0 face at t=0.5
+      ray(0.25f, 0.5f, 5, 0, 0, -1, 0, 4),  // tfar short of the triangle: miss
+      ray(0.25f, 0.5f, 5, 0, 0, -1, 6, 9),  // tnear past the triangle: miss
+      ray(0.9f, 0.9f, 5, 0, 0, -1),         // outside the triangle (u + v > 1): miss
   };
   std::vector<fmt::Hit> e(rays.size()), b(rays.size());
   oracle.closest(rays.data(), e.data(), rays.size());
@@ -190,8 +191,7 @@ TEST_P(OracleVsBruteForce, AgreesRayByRay) {
       ASSERT_LT(e[i].prim, m.triangle_count());
       Vec3d p;
       const double w[3] = {1.0 - e[i].u - e[i].v, e[i].u, e[i].v};
-      for (int k = 0; k < 3; ++k)
-        p = p + inst.transform.apply(to_d(m.positions[m.indices[3 * size_t(e[i].prim) + k]])) * w[k];
+      for (int k = 0; k < 3; ++k) p = p + inst.transform.apply(to_d(m.positions[m.indices[3 * size_t(e[i].prim) + k]])) * w[k];
       const Vec3d q = Vec3d{rays[i].org[0], rays[i].org[1], rays[i].org[2]} +
                       Vec3d{rays[i].dir[0], rays[i].dir[1], rays[i].dir[2]} * double(e[i].t);
       const double scale = std::max({1.0, length(scene.bounds.extent()), std::abs(p.x), std::abs(p.y), std::abs(p.z)});
@@ -241,8 +241,8 @@ TEST(OracleEmbree, PacketPathIsForTimingOnly) {
     std::printf("[   note   ] %s: Embree coherent vs stream: %llu closest-hit and %zu any-hit disagreements of %zu\n",
                 ray_kind_name(kind), (unsigned long long)(rep.failures + rep.edge_ties), occ_diff, n);
   }
-  const fmt::Ray down = ray_from_bits({0xc034332c, 0x415fd89a, 0xc09e1f07, 0x00000000, 0x00000000, 0xbf800000,
-                                       0xa5800000, 0x4171c52b});
+  const fmt::Ray down =
+      ray_from_bits({0xc034332c, 0x415fd89a, 0xc09e1f07, 0x00000000, 0x00000000, 0xbf800000, 0xa5800000, 0x4171c52b});
   fmt::Hit stream, packet, brute;
   oracle.closest(&down, &stream, 1);
   oracle.closest(&down, &packet, 1, RayCoherence::kCoherent);
@@ -327,7 +327,8 @@ TEST(OracleCompare, Classification) {
   EXPECT_EQ(classify_hit(r0, mid, mid), Verdict::kAgree);
   EXPECT_EQ(classify_hit(r0, mid, fmt::Hit{10.0009f, 4, 5, 0.3f, 0.3f}), Verdict::kAgree);  // 1e-4 * 10
   EXPECT_EQ(classify_hit(r0, mid, fmt::Hit{10.002f, 1, 2, 0.3f, 0.3f}), Verdict::kFail);
-  EXPECT_EQ(classify_hit(r0, fmt::Hit{0.5f, 1, 2, 0.3f, 0.3f}, fmt::Hit{0.50009f, 1, 2, 0.3f, 0.3f}), Verdict::kAgree);  // max(1, t)
+  EXPECT_EQ(classify_hit(r0, fmt::Hit{0.5f, 1, 2, 0.3f, 0.3f}, fmt::Hit{0.50009f, 1, 2, 0.3f, 0.3f}),
+            Verdict::kAgree);  // max(1, t)
   EXPECT_EQ(classify_hit(r0, mid, miss), Verdict::kFail);
   EXPECT_EQ(classify_hit(r0, miss, mid), Verdict::kFail);
   EXPECT_EQ(classify_hit(r0, edge, miss), Verdict::kEdgeTie);
@@ -369,7 +370,7 @@ TEST(OracleCompare, Classification) {
   small.instances[0].transform.m = {1, 0, 0, 3e6f, 0, 1, 0, 0, 0, 0, 1, 0};
   const fmt::Ray far_down = ray(3e6f, 0.003f, 1, 0, 0, -1);
   EXPECT_EQ(classify_hit(far_down, on, miss, with_scene), Verdict::kPrecisionTie);
-  EXPECT_EQ(classify_hit(far_down, on, miss), Verdict::kFail);  // no scene: no precision ties
+  EXPECT_EQ(classify_hit(far_down, on, miss), Verdict::kFail);                                // no scene: no precision ties
   EXPECT_FALSE(near_edge_in_precision(small, far_down, fmt::Hit{1, 5, 0, 0.3f, 0.3f}, 1.0));  // bad instance
 
   // Same surface at a grazing angle: t is ill-conditioned; a t difference whose hit points stay within
@@ -403,4 +404,5 @@ TEST(OracleCompare, Classification) {
   EXPECT_EQ(check_any_hit(rays.data(), ref.data(), occ_bad, 4).failures, 2u);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

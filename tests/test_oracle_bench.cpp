@@ -21,7 +21,8 @@
 #include "package/write_package.h"
 #include "trace/trace.h"
 
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -35,9 +36,7 @@ inline ToolRun run(const std::string& args) { return rtp::test::run_bench(args);
 
 class OracleBench : public ::testing::Test {
  protected:
-  void SetUp() override {
-    ASSERT_TRUE(fs::exists(kTool)) << kTool << " is not built (rtp_tests depends on it)";
-  }
+  void SetUp() override { ASSERT_TRUE(fs::exists(kTool)) << kTool << " is not built (rtp_tests depends on it)"; }
 };
 
 TEST_F(OracleBench, ExitCodes) {
@@ -49,14 +48,20 @@ TEST_F(OracleBench, ExitCodes) {
   EXPECT_EQ(run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 0").code, 1);
   EXPECT_EQ(run("/nonexistent/scene.glb").code, 2);
   const fs::path bad = fs::temp_directory_path() / ("rtp_oracle_bench_bad_" + std::to_string(getpid()) + ".gltf");
-  { FILE* f = std::fopen(bad.c_str(), "w"); ASSERT_NE(f, nullptr); std::fputs("{\"asset\": ", f); std::fclose(f); }
+  {
+    FILE* f = std::fopen(bad.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("{\"asset\": ", f);
+    std::fclose(f);
+  }
   EXPECT_EQ(run(q(bad.string())).code, 3);
   fs::remove(bad);
 }
 
 TEST_F(OracleBench, JsonRecordsAreCheckedAnswers) {
-  const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 1000 --reps 1 --threads 1 "
-                    "--kinds primary,shadow --json --build-stats --all");
+  const ToolRun r = run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") +
+                        " --rays 1000 --reps 1 --threads 1 "
+                        "--kinds primary,shadow --json --build-stats --all");
   ASSERT_EQ(r.code, 0) << r.out;
   const json j = json::parse(r.out);
   ASSERT_TRUE(j.is_array());
@@ -232,7 +237,8 @@ TEST_F(OracleBench, DefaultsAreTheQuickRun) {
   EXPECT_NE(t.out.find("\nrandom   closest   8 octant-stack   1 "), std::string::npos) << t.out;
   EXPECT_EQ(run(q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --convert --all").code, 1);
   // --primary-packet: the primary row's label says how its rays were traced; 0 = single rays.
-  const std::string suzanne = q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --kinds primary";
+  const std::string suzanne =
+      q(kSamples + "/khronos/Suzanne/glTF/Suzanne.gltf") + " --rays 500 --reps 1 --threads 1 --kinds primary";
   if (static_cast<int>(rtp::detect_isa()) >= static_cast<int>(rtp::Isa::kAvx2)) {
     const ToolRun p16 = run(suzanne + " --isa avx2");
     ASSERT_EQ(p16.code, 0) << p16.out;
@@ -280,9 +286,8 @@ class ConvertBench : public OracleBench {
   fs::path dir;
   void SetUp() override {
     OracleBench::SetUp();
-    dir = fs::temp_directory_path() /
-          ("rtp_convert_bench_" + std::to_string(getpid()) + "_" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = fs::temp_directory_path() / ("rtp_convert_bench_" + std::to_string(getpid()) + "_" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir);
     fs::create_directories(dir / "tmp");
   }
@@ -358,8 +363,7 @@ TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
     EXPECT_GT(s["stored_bytes"].get<uint64_t>(), 0u);
     EXPECT_GT(s["raw_bytes"].get<uint64_t>(), 0u);
     EXPECT_EQ(s["stored_bytes"], tool["sections"][kind]["stored_bytes"]);
-    EXPECT_NEAR(s["bytes_per_unique_triangle"].get<double>(), double(s["stored_bytes"].get<uint64_t>()) / double(unique),
-                1e-9);
+    EXPECT_NEAR(s["bytes_per_unique_triangle"].get<double>(), double(s["stored_bytes"].get<uint64_t>()) / double(unique), 1e-9);
     stored += s["stored_bytes"].get<uint64_t>();
     section_chunks += s["chunks"].get<uint64_t>();
   }
@@ -373,16 +377,15 @@ TEST_F(ConvertBench, RecordDescribesTheConvertersPackage) {
   // Every time was measured; the ratios are the quotients of the printed times (never asserted on).
   const json& sec = r["seconds"];
   for (const char* stage : {"import", "prepare", "plan", "chunks"}) EXPECT_GT(sec[stage].get<double>(), 0) << stage;
-  const double sum = sec["import"].get<double>() + sec["prepare"].get<double>() + sec["plan"].get<double>() +
-                     sec["chunks"].get<double>();
+  const double sum =
+      sec["import"].get<double>() + sec["prepare"].get<double>() + sec["plan"].get<double>() + sec["chunks"].get<double>();
   EXPECT_NEAR(sec["total"].get<double>(), sum, 1e-9);
   EXPECT_NEAR(sec["without_import"].get<double>(), sum - sec["import"].get<double>(), 1e-9);
   const double embree = r["embree_high_build_seconds"].get<double>();
   EXPECT_GT(embree, 0);
   EXPECT_GT(r["embree_geometries"].get<uint64_t>(), 0u);
   EXPECT_NEAR(r["ratio_embree_over_convert"].get<double>(), embree / sec["total"].get<double>(), 1e-9);
-  EXPECT_NEAR(r["ratio_embree_over_convert_without_import"].get<double>(), embree / sec["without_import"].get<double>(),
-              1e-9);
+  EXPECT_NEAR(r["ratio_embree_over_convert_without_import"].get<double>(), embree / sec["without_import"].get<double>(), 1e-9);
   EXPECT_NEAR(r["ratio_embree_over_chunks"].get<double>(), embree / sec["chunks"].get<double>(), 1e-9);
   EXPECT_GT(r["peak_rss_mib_convert"].get<double>(), 0);
   EXPECT_GE(r["peak_rss_mib"].get<double>(), r["peak_rss_mib_convert"].get<double>());
@@ -422,7 +425,7 @@ TEST_F(ConvertBench, RepetitionsNeverUnlinkADeviceOutput) {
   const std::string gallery = q(kSamples + "/generated/gallery.glb");
   const FullRun a = run_full(kTool, gallery + " --convert --reps 2 --threads 1 --convert-output " + q(null_dev.string()), dir);
   EXPECT_EQ(a.code, 0) << a.err;
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::lstat(null_dev.c_str(), &st), 0) << "the device node is gone";
   EXPECT_TRUE(S_ISCHR(st.st_mode)) << "the device node was replaced";
   const fs::path kept = dir / "kept.rtp";  // a regular file: each repetition's is replaced, the last one stays
@@ -450,4 +453,5 @@ TEST_F(ConvertBench, BadInputAndUsage) {
   EXPECT_EQ(run(gallery + " --convert --threads 0").code, 1);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace

@@ -26,7 +26,8 @@
 #include "trace/package_tracer.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -160,10 +161,11 @@ TEST(OutOfCore, ByteIdenticalToInCoreForEveryBudgetThreadCountAndOrder) {
     for (size_t i = 0; i < perm.size(); ++i) back[perm[i]] = hits[i];
     EXPECT_EQ(first_difference(want, back), -1);
   }
-  std::printf("out of core: %llu runs byte-identical (%llu with evictions, %llu at a 5%% budget), %llu budgets refused "
-              "below the minimum\n",
-              (unsigned long long)runs, (unsigned long long)runs_with_evictions, (unsigned long long)runs_at_5,
-              (unsigned long long)refused);
+  std::printf(
+      "out of core: %llu runs byte-identical (%llu with evictions, %llu at a 5%% budget), %llu budgets refused "
+      "below the minimum\n",
+      (unsigned long long)runs, (unsigned long long)runs_with_evictions, (unsigned long long)runs_at_5,
+      (unsigned long long)refused);
   // The test has teeth only if small budgets really ran and really evicted.
   EXPECT_GT(runs_with_evictions, 0u);
   EXPECT_GT(runs_at_5, 0u);
@@ -220,11 +222,12 @@ void expect_culling_saves_loads(uint64_t points, bool boxes, size_t stride) {
   } else {  // a load is spared only where every queued ray is culled: with 31 large points, rarely
     EXPECT_LE(sa.cache.loads, sb.cache.loads);
   }
-  std::printf("culling at a %llu-byte budget: %llu of %llu batching-point visits culled; %llu chunks loaded, %llu bytes "
-              "read (without culling %llu, %llu)\n",
-              (unsigned long long)budget, (unsigned long long)sa.culled_visits, (unsigned long long)sa.point_visits,
-              (unsigned long long)sa.cache.loads, (unsigned long long)sa.cache.bytes_read, (unsigned long long)sb.cache.loads,
-              (unsigned long long)sb.cache.bytes_read);
+  std::printf(
+      "culling at a %llu-byte budget: %llu of %llu batching-point visits culled; %llu chunks loaded, %llu bytes "
+      "read (without culling %llu, %llu)\n",
+      (unsigned long long)budget, (unsigned long long)sa.culled_visits, (unsigned long long)sa.point_visits,
+      (unsigned long long)sa.cache.loads, (unsigned long long)sa.cache.bytes_read, (unsigned long long)sb.cache.loads,
+      (unsigned long long)sb.cache.bytes_read);
   fs::remove_all(dir);
 }
 
@@ -293,8 +296,10 @@ TEST(OutOfCore, LeafFrameSettingsChangeOnlyTheStoredBytes) {
     bool raw_literals;
     int min_match;
   };
-  const Variant variants[] = {{"default", true, kDefaultLeafMinMatch}, {"huffman", false, kDefaultLeafMinMatch},
-                              {"level's matches", true, 0}, {"min match 4", true, 4}};
+  const Variant variants[] = {{"default", true, kDefaultLeafMinMatch},
+                              {"huffman", false, kDefaultLeafMinMatch},
+                              {"level's matches", true, 0},
+                              {"min match 4", true, 4}};
   ConvertSettings cs;
   cs.input = s.path;
   cs.width = s.width;
@@ -323,7 +328,8 @@ TEST(OutOfCore, LeafFrameSettingsChangeOnlyTheStoredBytes) {
       if (reader.toc()[i].kind != uint32_t(fmt::ChunkKind::kMetadata)) {
         EXPECT_TRUE(raw[0][i] == raw[k][i]) << variants[k].name << ", chunk " << i;
       }
-    EXPECT_NE(point_stored[0], point_stored[k]) << variants[k].name << ": the setting must reach the batching points' zstd frames";
+    EXPECT_NE(point_stored[0], point_stored[k])
+        << variants[k].name << ": the setting must reach the batching points' zstd frames";
   }
   cs.zstd_leaf_min_match = 9;  // zstd's range is 3..7: refused, not ignored
   cs.output = (dir / "bad.rtp").string();
@@ -392,7 +398,7 @@ TEST(OutOfCore, SectionCountStreamsTheChunk) {
     v.get<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs, n);
     EXPECT_GT(n, 1000u);
     EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstanceRefs), sizeof(fmt::InstanceRef)), n);
-    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kGlobalIds), 4), 0u);  // absent: 0
+    EXPECT_EQ(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kGlobalIds), 4), 0u);            // absent: 0
     EXPECT_THROW(reader.section_count(size_t(i), uint32_t(fmt::SectionType::kInstanceRefs), 16), Error);  // wrong size
   }
   {  // the last stored byte flipped (CRC re-sealed nowhere): refused as corrupt
@@ -425,7 +431,8 @@ TEST(OutOfCore, EvictedBuffersAreReusedAndHoldTheNewChunk) {
   for (size_t i = 0; i < reader.toc().size(); ++i)
     if (reader.toc()[i].kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) points.push_back(uint32_t(i));
   ASSERT_GE(points.size(), 3u);
-  std::sort(points.begin(), points.end(), [&](uint32_t a, uint32_t b) { return reader.toc()[a].raw_size < reader.toc()[b].raw_size; });
+  std::sort(points.begin(), points.end(),
+            [&](uint32_t a, uint32_t b) { return reader.toc()[a].raw_size < reader.toc()[b].raw_size; });
   // Two points of different sizes within 1/16 of each other: the smaller fits in the larger's buffer.
   size_t k = 1;
   auto size_of = [&](size_t at) { return reader.toc()[points[at]].raw_size; };
@@ -492,8 +499,10 @@ TEST(OutOfCore, ABadBatchingPointIsRefusedWhenLoaded) {
   const auto* d = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n);
   std::vector<fmt::Ray> rays;
   for (uint64_t p = 0; p < n; ++p)
-    rays.push_back({{(d[p].lo[0] + d[p].hi[0]) / 2, (d[p].lo[1] + d[p].hi[1]) / 2, (d[p].lo[2] + d[p].hi[2]) / 2}, 0,
-                    {0.3f, 1, 0.2f}, 1e30f});
+    rays.push_back({{(d[p].lo[0] + d[p].hi[0]) / 2, (d[p].lo[1] + d[p].hi[1]) / 2, (d[p].lo[2] + d[p].hi[2]) / 2},
+                    0,
+                    {0.3f, 1, 0.2f},
+                    1e30f});
   std::vector<fmt::Hit> hits(rays.size());
   PackageTraceOptions o = options();
   o.cull = false;
@@ -534,8 +543,10 @@ TEST(OutOfCore, TopLevelParentPointersAreChecked) {
   const PackageReader reader(pkg);
   for (int path = 0; path < 2; ++path) {
     try {
-      if (path == 0) load_package_in_core(reader);
-      else open_out_of_core(reader, on_demand_bytes(reader));
+      if (path == 0)
+        load_package_in_core(reader);
+      else
+        open_out_of_core(reader, on_demand_bytes(reader));
       ADD_FAILURE() << "accepted a wrong parent slot";
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("child " + std::to_string(child) + " names parent"), std::string::npos) << e.what();
@@ -544,5 +555,6 @@ TEST(OutOfCore, TopLevelParentPointersAreChecked) {
   fs::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

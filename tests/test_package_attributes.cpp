@@ -24,7 +24,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -54,8 +55,8 @@ struct ToolRun {
   std::string out, err;
 };
 ToolRun run(const std::string& tool, const std::string& args, const fs::path& dir) {
-  const std::string cmd = std::string(RTP_BINARY_DIR) + "/" + tool + " " + args + " > " + (dir / "out").string() + " 2> " +
-                          (dir / "err").string();
+  const std::string cmd =
+      std::string(RTP_BINARY_DIR) + "/" + tool + " " + args + " > " + (dir / "out").string() + " 2> " + (dir / "err").string();
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
 }
@@ -161,7 +162,8 @@ void check_shading_ray_by_ray(const Scene& s, const std::string& path, bool norm
       double n[3] = {0, 0, 0}, t[2] = {0, 0};
       for (int k = 0; k < 3; ++k) {
         const uint32_t vi = m.indices[3 * size_t(hits[i].prim) + size_t(k)];
-        if (!m.normals.empty()) for (int a = 0; a < 3; ++a) n[a] += w[k] * m.normals[vi][a];
+        if (!m.normals.empty())
+          for (int a = 0; a < 3; ++a) n[a] += w[k] * m.normals[vi][a];
         if (!m.uvs.empty()) t[0] += w[k] * m.uvs[vi].x, t[1] += w[k] * m.uvs[vi].y;
       }
       // Inverse transpose by cofactors of the 3x3 part (sign and scale drop out in the normalization).
@@ -219,7 +221,8 @@ std::vector<std::array<Corner, 3>> world_corners(const Scene& s) {
           c.p[r] = e(r, 0) * m.positions[v].x + e(r, 1) * m.positions[v].y + e(r, 2) * m.positions[v].z + e(r, 3);
           double cof[3];
           for (int j = 0; j < 3; ++j)
-            cof[j] = e((r + 1) % 3, (j + 1) % 3) * e((r + 2) % 3, (j + 2) % 3) - e((r + 1) % 3, (j + 2) % 3) * e((r + 2) % 3, (j + 1) % 3);
+            cof[j] = e((r + 1) % 3, (j + 1) % 3) * e((r + 2) % 3, (j + 2) % 3) -
+                     e((r + 1) % 3, (j + 2) % 3) * e((r + 2) % 3, (j + 1) % 3);
           c.n[r] = cof[0] * m.normals[v].x + cof[1] * m.normals[v].y + cof[2] * m.normals[v].z;
           len += c.n[r] * c.n[r];
         }
@@ -238,10 +241,14 @@ std::vector<std::array<Corner, 3>> world_corners(const Scene& s) {
 // corner by corner the normals and uvs must agree within the encoding's quantization.
 TEST_F(Attributes, ImportAgreesAcrossEncodingsOfARealFile) {
   const auto f = world_corners(load(kLantern + "glTF/Lantern.gltf", true, false));
-  struct Enc { const char* path; double pos_tol, max_deg, max_uv; };
+  struct Enc {
+    const char* path;
+    double pos_tol, max_deg, max_uv;
+  };
   // Quantized: 14-bit positions, int8 normals (≤ 1/127 per component), uv step 2.4e-4 (its texture
   // transform's scale). Draco: 11-bit positions, the file's normal and uv bits (measured ≤ 3°, 1e-3).
-  for (const Enc& enc : {Enc{"glTF-Quantized/Lantern.gltf", 2.5e-3, 1.0, 2.5e-4}, Enc{"glTF-Draco/Lantern.gltf", 2e-2, 3.0, 1e-3}}) {
+  for (const Enc& enc :
+       {Enc{"glTF-Quantized/Lantern.gltf", 2.5e-3, 1.0, 2.5e-4}, Enc{"glTF-Draco/Lantern.gltf", 2e-2, 3.0, 1e-3}}) {
     SCOPED_TRACE(enc.path);
     auto g = world_corners(load(kLantern + enc.path, true, false));  // as imported: no triangle dropped
     ASSERT_EQ(g.size(), f.size());
@@ -283,10 +290,13 @@ TEST_F(Attributes, ImportAgreesAcrossEncodingsOfARealFile) {
 
 TEST_F(Attributes, EveryCornerOfEveryChunkMatchesTheScene) {
   const std::string glb = attribute_scene(dir);
-  struct Case { std::string path; uint64_t target; };
-  for (const Case& c : {Case{glb, 0}, Case{"samples/khronos/BoomBox/glTF/BoomBox.gltf", 700},
-                        Case{"samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb", 5000},
-                        Case{kLantern + "glTF-Quantized/Lantern.gltf", 0}}) {
+  struct Case {
+    std::string path;
+    uint64_t target;
+  };
+  for (const Case& c :
+       {Case{glb, 0}, Case{"samples/khronos/BoomBox/glTF/BoomBox.gltf", 700},
+        Case{"samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb", 5000}, Case{kLantern + "glTF-Quantized/Lantern.gltf", 0}}) {
     SCOPED_TRACE(c.path);
     const Scene s = load(c.path);
     for (int w : {4, 8, 16}) {
@@ -346,10 +356,10 @@ TEST_F(Attributes, NothingStoredUnlessAskedFor) {
     }
   EXPECT_GE(geometry, 2u);
   // A file without any normal: a warning, and nothing stored.
-  const ToolRun c = run("rtpack-convert",
-                        (source_dir() / "samples/generated/gallery.glb").string() + " -o " + (dir / "g.rtp").string() +
-                            " --attributes normal,uv",
-                        dir);
+  const ToolRun c = run(
+      "rtpack-convert",
+      (source_dir() / "samples/generated/gallery.glb").string() + " -o " + (dir / "g.rtp").string() + " --attributes normal,uv",
+      dir);
   EXPECT_EQ(c.code, 0);
   EXPECT_NE(c.err.find("--attributes: no mesh has NORMAL; none stored"), std::string::npos) << c.err;
   EXPECT_EQ(PackageReader((dir / "g.rtp").string()).header().flags, fmt::kFlagDag);
@@ -362,8 +372,10 @@ TEST_F(Attributes, TraceToolWritesShadingAndRefusesItWithAny) {
   const std::string glb = attribute_scene(dir);
   const std::string p = (dir / "a.rtp").string(), rays = (dir / "r.bin").string();
   ASSERT_EQ(run("rtpack-convert", glb + " -o " + p + " --attributes normal,uv -q", dir).code, 0);
-  const ToolRun t = run("rtpack-trace", p + " --make-camera-rays 48x32 --rays " + rays + " --hits " +
-                                            (dir / "h.bin").string() + " --shading " + (dir / "s.bin").string(), dir);
+  const ToolRun t = run("rtpack-trace",
+                        p + " --make-camera-rays 48x32 --rays " + rays + " --hits " + (dir / "h.bin").string() + " --shading " +
+                            (dir / "s.bin").string(),
+                        dir);
   ASSERT_EQ(t.code, 0) << t.err;
   const std::string hb = slurp(dir / "h.bin"), sb = slurp(dir / "s.bin");
   ASSERT_EQ(hb.size() / sizeof(fmt::Hit), 48u * 32u);
@@ -381,8 +393,9 @@ TEST_F(Attributes, TraceToolWritesShadingAndRefusesItWithAny) {
     lit += got.normal[0] != 0 || got.normal[1] != 0 || got.normal[2] != 0;
   }
   EXPECT_GT(lit, 30u);
-  const ToolRun any = run("rtpack-trace", p + " --rays " + rays + " --hits " + (dir / "o.bin").string() + " --any --shading " +
-                                              (dir / "s2.bin").string(), dir);
+  const ToolRun any =
+      run("rtpack-trace",
+          p + " --rays " + rays + " --hits " + (dir / "o.bin").string() + " --any --shading " + (dir / "s2.bin").string(), dir);
   EXPECT_EQ(any.code, 1);
   EXPECT_NE(any.err.find("--shading needs closest hits"), std::string::npos) << any.err;
   EXPECT_FALSE(fs::exists(dir / "s2.bin"));
@@ -392,21 +405,31 @@ TEST_F(Attributes, TraceToolWritesShadingAndRefusesItWithAny) {
 TEST_F(Attributes, VerifyNamesEveryTamperedAttributeChunk) {
   const std::string glb = attribute_scene(dir);
   const Scene s = load(glb);
-  struct Edit { const char* what; fmt::ChunkKind kind; std::function<void(uint8_t*)> f; const char* message; };
+  struct Edit {
+    const char* what;
+    fmt::ChunkKind kind;
+    std::function<void(uint8_t*)> f;
+    const char* message;
+  };
   const std::vector<Edit> edits = {
       {"index", fmt::ChunkKind::kSegmentAttributes,
        [](uint8_t* c) { section<uint32_t>(c, fmt::SectionType::kAttrTriangles)[4] = 1u << 20; }, "vertex indices out of range"},
       {"normal", fmt::ChunkKind::kSegmentAttributes,
        [](uint8_t* c) { section<float>(c, fmt::SectionType::kAttrNormals)[7] = std::nanf(""); }, "normals neither unit length"},
-      {"uv", fmt::ChunkKind::kPointAttributes,
-       [](uint8_t* c) { section<float>(c, fmt::SectionType::kAttrUvs)[3] = INFINITY; }, "non-finite texture coordinates"},
+      {"uv", fmt::ChunkKind::kPointAttributes, [](uint8_t* c) { section<float>(c, fmt::SectionType::kAttrUvs)[3] = INFINITY; },
+       "non-finite texture coordinates"},
       {"ids", fmt::ChunkKind::kPointAttributes,
-       [](uint8_t* c) { std::swap(section<uint32_t>(c, fmt::SectionType::kAttrTriIds)[0], section<uint32_t>(c, fmt::SectionType::kAttrTriIds)[1]); },
+       [](uint8_t* c) {
+         std::swap(section<uint32_t>(c, fmt::SectionType::kAttrTriIds)[0],
+                   section<uint32_t>(c, fmt::SectionType::kAttrTriIds)[1]);
+       },
        "not strictly ascending"},
       {"mesh", fmt::ChunkKind::kSegmentAttributes,
-       [](uint8_t* c) { section<fmt::AttributeEntry>(c, fmt::SectionType::kAttrEntries)[0].mesh = 1; }, "the geometry entry's are"},
+       [](uint8_t* c) { section<fmt::AttributeEntry>(c, fmt::SectionType::kAttrEntries)[0].mesh = 1; },
+       "the geometry entry's are"},
       {"range", fmt::ChunkKind::kPointAttributes,
-       [](uint8_t* c) { section<fmt::AttributeEntry>(c, fmt::SectionType::kAttrEntries)[0].vertex_count += 1000; }, "outside the section"},
+       [](uint8_t* c) { section<fmt::AttributeEntry>(c, fmt::SectionType::kAttrEntries)[0].vertex_count += 1000; },
+       "outside the section"},
   };
   for (const Edit& e : edits) {
     SCOPED_TRACE(e.what);
@@ -426,11 +449,13 @@ TEST_F(Attributes, VerifyNamesEveryTamperedAttributeChunk) {
   const std::string p = write(s, dir / "flags.rtp", 0, 0);
   PackageReader r(p);
   const int64_t mi = r.find(fmt::ChunkKind::kMeshes, 0);
-  patch_chunk(p, size_t(mi), [](uint8_t* c, size_t) { section<fmt::MeshInfo>(c, fmt::SectionType::kMeshTable)[1].flags ^= fmt::kMeshNormals; });
+  patch_chunk(p, size_t(mi),
+              [](uint8_t* c, size_t) { section<fmt::MeshInfo>(c, fmt::SectionType::kMeshTable)[1].flags ^= fmt::kMeshNormals; });
   const ToolRun v = run("rtpack-inspect", p + " --verify", dir);
   EXPECT_EQ(v.code, 3);
   EXPECT_NE(v.out.find("attributes disagree with the mesh table's flags for mesh 1"), std::string::npos) << v.out;
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

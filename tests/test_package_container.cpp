@@ -15,7 +15,8 @@
 #include "layout/chunk_io.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -32,7 +33,8 @@ std::vector<std::vector<uint8_t>> write_sample(const std::string& path, int leve
                                               pattern(4096, 5)};
   PackageWriter w(path, level);
   w.add_chunk(fmt::ChunkKind::kMetadata, 0, chunks[0].data(), chunks[0].size());
-  for (size_t i = 1; i < chunks.size(); ++i) w.add_chunk(fmt::ChunkKind::kBatchingPoint, i - 1, chunks[i].data(), chunks[i].size());
+  for (size_t i = 1; i < chunks.size(); ++i)
+    w.add_chunk(fmt::ChunkKind::kBatchingPoint, i - 1, chunks[i].data(), chunks[i].size());
   fmt::Header h{};
   h.unique_triangles = 7;
   h.bvh_width = 8;
@@ -175,7 +177,10 @@ TEST_F(Container, ThousandRandomBitFlipsAreAllCaught) {
   int caught = 0;
   for (int trial = 0; trial < 1000; ++trial) {
     auto [off, len] = ranges[rng() % ranges.size()];
-    if (len == 0) { --trial; continue; }
+    if (len == 0) {
+      --trial;
+      continue;
+    }
     const uint64_t pos = off + rng() % len;
     std::string s = bytes;
     s[pos] = char(s[pos] ^ (1 << (rng() % 8)));
@@ -196,7 +201,8 @@ TEST_F(Container, WrongVersionNamesBothVersions) {
   f.write(reinterpret_cast<const char*>(&v), 4);
   f.close();
   EXPECT_EQ(open_and_read_all(p), "package version " + std::to_string(v) + "." + std::to_string(rtp::fmt::kVersionMinor) +
-                                      " is not supported by this reader (version " + std::to_string(rtp::fmt::kVersionMajor) + ".x)");
+                                      " is not supported by this reader (version " + std::to_string(rtp::fmt::kVersionMajor) +
+                                      ".x)");
 }
 
 TEST_F(Container, CorruptChunkIsNamed) {
@@ -257,12 +263,12 @@ TEST(AlignedLarge, FreedPagesMoveIntoTheNextBuffers) {
     AlignedBytes a(10 * kMiB), b(6 * kMiB);
     std::memset(a.data(), 0xA1, a.size());
     std::memset(b.data(), 0xB2, b.size());
-  }  // freed: b then a are kept (a the most recent)
+  }                             // freed: b then a are kept (a the most recent)
   AlignedBytes big(16 * kMiB);  // a's 10 MiB first, then b's 6
   EXPECT_EQ(std::count(big.begin(), big.begin() + 10 * kMiB, uint8_t(0xA1)), std::ptrdiff_t(10 * kMiB));
   EXPECT_EQ(std::count(big.begin() + 10 * kMiB, big.end(), uint8_t(0xB2)), std::ptrdiff_t(6 * kMiB));
   std::memset(big.data(), 0xC3, big.size());
-  big = AlignedBytes();  // freed: 16 MiB kept
+  big = AlignedBytes();                          // freed: 16 MiB kept
   AlignedBytes head(6 * kMiB), rest(10 * kMiB);  // a larger kept mapping serves two smaller buffers
   EXPECT_EQ(std::count(head.begin(), head.end(), uint8_t(0xC3)), std::ptrdiff_t(head.size()));
   EXPECT_EQ(std::count(rest.begin(), rest.end(), uint8_t(0xC3)), std::ptrdiff_t(rest.size()));
@@ -290,8 +296,8 @@ TEST_F(Container, ShortFilesAndAppendedBytesSayWhatTheyAre) {
   write_sample(p);
   const uint64_t size = fs::file_size(p);
   std::ofstream(p, std::ios::binary | std::ios::app) << std::string(100, 'x');
-  EXPECT_EQ(open_and_read_all(p), "the file has 100 bytes more than the header's " + std::to_string(size) +
-                                      " (data appended after the package?)");
+  EXPECT_EQ(open_and_read_all(p),
+            "the file has 100 bytes more than the header's " + std::to_string(size) + " (data appended after the package?)");
 }
 
 // ChunkBuilder borrows its sections and gathers one from several arrays: the chunk equals the one built
@@ -325,5 +331,6 @@ TEST(ChunkBuilder, GatheredSectionsEqualTheConcatenationInAnyBuffer) {
   EXPECT_THROW(none.append_to_section(a.data(), a.size()), Error);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -22,7 +22,8 @@
 #include "hostile_package.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using fmt::ChildRef;
 using fmt::SectionType;
@@ -60,14 +61,15 @@ std::string patch_segment(const std::string& path, bool nonroot,
   return label;
 }
 
-std::string entry_name(const InnerLane& at) { return "mesh " + std::to_string(at.id) + " (entry " + std::to_string(at.entry) + ")"; }
+std::string entry_name(const InnerLane& at) {
+  return "mesh " + std::to_string(at.id) + " (entry " + std::to_string(at.entry) + ")";
+}
 
 TEST_F(Hostile, NodeThatIsItsOwnChild) {
   const std::string p = copy(bases().forest);
   InnerLane at;
-  const std::string label = patch_segment(p, false, [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) {
-    n.child[a.lane] = uint32_t(a.node);
-  }, &at);
+  const std::string label = patch_segment(
+      p, false, [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) { n.child[a.lane] = uint32_t(a.node); }, &at);
   expect_everywhere(p, {label, entry_name(at), "node " + std::to_string(at.node) + " lane " + std::to_string(at.lane),
                         "child " + std::to_string(at.node) + " is not after its parent"});
 }
@@ -75,9 +77,8 @@ TEST_F(Hostile, NodeThatIsItsOwnChild) {
 TEST_F(Hostile, ChildPointingBackToTheRoot) {
   const std::string p = copy(bases().forest);
   InnerLane at;
-  const std::string label = patch_segment(p, true, [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) {
-    n.child[a.lane] = 0;
-  }, &at);
+  const std::string label = patch_segment(
+      p, true, [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) { n.child[a.lane] = 0; }, &at);
   expect_everywhere(p, {label, entry_name(at), "child 0 is not after its parent"});
 }
 
@@ -85,23 +86,29 @@ TEST_F(Hostile, ChildIndexOutOfRange) {
   const std::string p = copy(bases().forest);
   InnerLane at;
   uint32_t bad = 0;
-  const std::string label = patch_segment(p, false, [&](fmt::WideNode<kW>& n, fmt::MeshEntry& e, const InnerLane& a) {
-    bad = e.node_count + 1000;
-    n.child[a.lane] = bad;
-  }, &at);
+  const std::string label = patch_segment(
+      p, false,
+      [&](fmt::WideNode<kW>& n, fmt::MeshEntry& e, const InnerLane& a) {
+        bad = e.node_count + 1000;
+        n.child[a.lane] = bad;
+      },
+      &at);
   expect_everywhere(p, {label, entry_name(at), "child " + std::to_string(bad) + " out of range"});
 }
 
 TEST_F(Hostile, NodeReferencedTwice) {  // a DAG instead of a tree: exponential walks
   const std::string p = copy(bases().forest);
   InnerLane at;
-  const std::string label = patch_segment(p, false, [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) {
-    for (int l = 0; l < kW; ++l)
-      if (l != a.lane && !ChildRef::is_empty(n.child[l])) {
-        n.child[l] = n.child[a.lane];
-        return;
-      }
-  }, &at);
+  const std::string label = patch_segment(
+      p, false,
+      [](fmt::WideNode<kW>& n, fmt::MeshEntry&, const InnerLane& a) {
+        for (int l = 0; l < kW; ++l)
+          if (l != a.lane && !ChildRef::is_empty(n.child[l])) {
+            n.child[l] = n.child[a.lane];
+            return;
+          }
+      },
+      &at);
   expect_everywhere(p, {label, entry_name(at), "is referenced a second time"});
 }
 
@@ -109,10 +116,13 @@ TEST_F(Hostile, MeshBvhRootOutOfRange) {
   const std::string p = copy(bases().forest);
   InnerLane at;
   uint32_t bad = 0;
-  const std::string label = patch_segment(p, false, [&](fmt::WideNode<kW>&, fmt::MeshEntry& e, const InnerLane&) {
-    bad = e.node_count + 5;
-    e.root = bad;
-  }, &at);
+  const std::string label = patch_segment(
+      p, false,
+      [&](fmt::WideNode<kW>&, fmt::MeshEntry& e, const InnerLane&) {
+        bad = e.node_count + 5;
+        e.root = bad;
+      },
+      &at);
   expect_everywhere(p, {label, entry_name(at), "root node " + std::to_string(bad) + " out of range"});
 }
 
@@ -120,20 +130,23 @@ TEST_F(Hostile, LeafBlockRangeOutOfRange) {
   const std::string p = copy(bases().forest);
   InnerLane at;
   uint32_t first = 0;
-  const std::string label = patch_segment(p, false, [&](fmt::WideNode<kW>& n, fmt::MeshEntry& e, const InnerLane& a) {
-    first = e.block_count - 1;  // 2 blocks from the last one: one past the entry's blocks
-    n.child[a.lane] = ChildRef::leaf(first, 2);
-  }, &at);
-  expect_everywhere(p, {label, entry_name(at), "leaf blocks " + std::to_string(first) + ".." + std::to_string(first + 1) + " out of range"});
+  const std::string label = patch_segment(
+      p, false,
+      [&](fmt::WideNode<kW>& n, fmt::MeshEntry& e, const InnerLane& a) {
+        first = e.block_count - 1;  // 2 blocks from the last one: one past the entry's blocks
+        n.child[a.lane] = ChildRef::leaf(first, 2);
+      },
+      &at);
+  expect_everywhere(
+      p, {label, entry_name(at), "leaf blocks " + std::to_string(first) + ".." + std::to_string(first + 1) + " out of range"});
 }
 
 TEST_F(Hostile, EntryNodeRangeWrapsAndNonFiniteBoxAndBadOrder) {
   {
     const std::string p = copy(bases().forest);
     InnerLane at;
-    const std::string label = patch_segment(p, false, [](fmt::WideNode<kW>&, fmt::MeshEntry& e, const InnerLane&) {
-      e.node_first = 0xFFFFFFF0u;
-    }, &at);
+    const std::string label = patch_segment(
+        p, false, [](fmt::WideNode<kW>&, fmt::MeshEntry& e, const InnerLane&) { e.node_first = 0xFFFFFFF0u; }, &at);
     expect_everywhere(p, {label, entry_name(at), "node_first 4294967280 + node_count"});
   }
   {
@@ -187,22 +200,26 @@ TEST_F(Hostile, InstanceLevelOfABatchingPoint) {
     std::function<std::string(uint8_t*)> edit;  // returns the expected field text
   };
   const std::vector<Case> cases = {
-      {"global id", [](uint8_t* c) {
+      {"global id",
+       [](uint8_t* c) {
          section<uint32_t>(c, SectionType::kGlobalIds)[1] = 0xFFFFFF00u;
          return std::string("global id 1 = 4294967040 out of range");
        }},
-      {"instance id", [](uint8_t* c) {
+      {"instance id",
+       [](uint8_t* c) {
          uint64_t n = 0;
          section<fmt::InstanceRecord>(c, SectionType::kInstances, &n);
          section<uint32_t>(c, SectionType::kInstanceIds)[0] = uint32_t(n);
          return "instance id 0 = " + std::to_string(n) + " out of range";
        }},
-      {"duplicated instance leaf", [](uint8_t* c) {
+      {"duplicated instance leaf",
+       [](uint8_t* c) {
          uint32_t* ids = section<uint32_t>(c, SectionType::kInstanceIds);
          ids[1] = ids[0];
          return "instance id 1 = " + std::to_string(ids[0]) + " is referenced a second time";
        }},
-      {"instance-leaf range", [](uint8_t* c) {
+      {"instance-leaf range",
+       [](uint8_t* c) {
          uint64_t n_ids = 0;
          section<uint32_t>(c, SectionType::kInstanceIds, &n_ids);
          auto* te = section<fmt::MeshEntry>(c, SectionType::kInstanceBvh);
@@ -220,11 +237,13 @@ TEST_F(Hostile, InstanceLevelOfABatchingPoint) {
          }
          return "root leaf: instance ids " + std::to_string(n_ids) + ".." + std::to_string(n_ids) + " out of range";
        }},
-      {"instance BVH sizes", [](uint8_t* c) {
+      {"instance BVH sizes",
+       [](uint8_t* c) {
          section<fmt::MeshEntry>(c, SectionType::kInstanceBvh)->block_count += 1;
          return std::string("instance BVH entry");
        }},
-      {"mesh slot", [](uint8_t* c) {
+      {"mesh slot",
+       [](uint8_t* c) {
          uint64_t ne = 0, ns = 0;
          section<fmt::MeshEntry>(c, SectionType::kMeshEntries, &ne);
          section<uint32_t>(c, SectionType::kMeshSlots, &ns)[0] = fmt::kPieceBit | uint32_t(ne + 3);
@@ -289,11 +308,13 @@ TEST_F(Hostile, CullingGridIsCheckedAtDecode) {  // voxel::check_dags runs when 
   const std::string p = copy(bases().forest);
   const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0);
   const std::string pool = chunk_of(p, fmt::ChunkKind::kDagPool, 0).second;
-  patch_chunk(p, index, [](uint8_t* chunk, size_t) { section<fmt::DagGrid>(chunk, SectionType::kPointGrids)[2].resolution = 48; });
+  patch_chunk(p, index,
+              [](uint8_t* chunk, size_t) { section<fmt::DagGrid>(chunk, SectionType::kPointGrids)[2].resolution = 48; });
   expect_tracer_rejects(p, {pool, "culling DAG of batching point 2: resolution 48 is not a power of two"});
   expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"}, true);
   expect_inspect_problem(p, {label, "batching point 2", "resolution 48 is not a power of two"});  // plain inspect too
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

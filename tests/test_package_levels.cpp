@@ -14,7 +14,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -34,15 +35,16 @@ TEST(PackageLevels, SourceMapAtLevelThreeUnderLevelsOneAndTwo) {
     const fs::path path = dir / ("level" + std::to_string(c.asked) + ".rtp");
     write_package(scene, plan, path.string(), cv);
     const PackageReader reader(path.string());
-    for (const auto& [kind, expect] : {std::pair{fmt::ChunkKind::kSourceMap, c.source_map}, std::pair{fmt::ChunkKind::kMetadata, c.metadata}}) {
+    for (const auto& [kind, expect] :
+         {std::pair{fmt::ChunkKind::kSourceMap, c.source_map}, std::pair{fmt::ChunkKind::kMetadata, c.metadata}}) {
       const int64_t i = reader.find(kind, 0);
       ASSERT_GE(i, 0);
       const fmt::TocEntry& e = reader.toc()[size_t(i)];
       const AlignedBytes raw = reader.read(size_t(i));
       fmt::Compression comp;
       const AlignedBytes again = PackageWriter::compress(raw.data(), raw.size(), expect, comp);
-      EXPECT_EQ(e.stored_size, again.size()) << chunk_kind_name(uint32_t(kind)) << " asked level " << c.asked
-                                             << ": not stored at level " << expect;
+      EXPECT_EQ(e.stored_size, again.size())
+          << chunk_kind_name(uint32_t(kind)) << " asked level " << c.asked << ": not stored at level " << expect;
     }
   }
   // The point of it: under the default level the source map is the smaller for it.

@@ -20,7 +20,8 @@
 #include "reader/camera.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using fmt::SectionType;
 
@@ -192,7 +193,8 @@ TEST_F(Limits, VerifyStopsEarlyOnAChangedMeshEntryId) {
 std::string patch_attributes(const std::string& p, const std::function<void(fmt::AttributeEntry&)>& edit) {
   const PackageReader r(p);
   for (size_t i = 0; i < r.toc().size(); ++i)
-    if (r.toc()[i].kind == uint32_t(fmt::ChunkKind::kSegmentAttributes) || r.toc()[i].kind == uint32_t(fmt::ChunkKind::kPointAttributes)) {
+    if (r.toc()[i].kind == uint32_t(fmt::ChunkKind::kSegmentAttributes) ||
+        r.toc()[i].kind == uint32_t(fmt::ChunkKind::kPointAttributes)) {
       patch_chunk(p, i, [&](uint8_t* chunk, size_t) {
         uint64_t n = 0;
         fmt::AttributeEntry* e = section<fmt::AttributeEntry>(chunk, SectionType::kAttrEntries, &n);
@@ -233,8 +235,10 @@ TEST_F(Limits, AttributeMeshIdDoesNotSizeTables) {
     const fmt::Hit h{1.0f, inst, 0, 0.25f, 0.25f};
     const fmt::Shading a = lookup.shade(h), b = before.shade(h);
     ASSERT_TRUE(b.normal[0] != 0 || b.normal[1] != 0 || b.normal[2] != 0) << "instance " << inst << " has normals";
-    if (std::memcmp(&a, &b, sizeof a) == 0) ++same;
-    else if (a.normal[0] == 0 && a.normal[1] == 0 && a.normal[2] == 0 && a.uv[0] == 0 && a.uv[1] == 0) ++lost;
+    if (std::memcmp(&a, &b, sizeof a) == 0)
+      ++same;
+    else if (a.normal[0] == 0 && a.normal[1] == 0 && a.normal[2] == 0 && a.uv[0] == 0 && a.uv[1] == 0)
+      ++lost;
   }
   EXPECT_EQ(same, 2u);
   EXPECT_EQ(lost, 1u);
@@ -261,8 +265,8 @@ TEST(CameraWorld, MustBeAFiniteRotation) {
   huge[7] = 1e300;
   nan[5] = std::numeric_limits<double>::quiet_NaN();
   for (const auto& [m, want] : {std::pair<const double*, std::string>{zero, "/cameras/0/world: the 3x3 part has determinant 0"},
-                               {huge, "/cameras/0/world/7: 1e+300 is not a finite coordinate"},
-                               {nan, "/cameras/0/world/5: nan is not a finite coordinate"}}) {
+                                {huge, "/cameras/0/world/7: 1e+300 is not a finite coordinate"},
+                                {nan, "/cameras/0/world/5: nan is not a finite coordinate"}}) {
     try {
       check_camera_world(m, "/cameras/0/world");
       ADD_FAILURE() << want << ": accepted";
@@ -295,9 +299,7 @@ TEST_F(Limits, VerifyReportsNonZeroPadding) {
   EXPECT_EQ(t.code, 3) << t.out;
 }
 
-size_t open_descriptors() {
-  return size_t(std::distance(fs::directory_iterator("/proc/self/fd"), fs::directory_iterator()));
-}
+size_t open_descriptors() { return size_t(std::distance(fs::directory_iterator("/proc/self/fd"), fs::directory_iterator())); }
 
 // A package refused while it is opened (here: a bad magic, then a truncated file) closes its file: a
 // renderer or service that is handed many bad packages must not run out of descriptors (fuzz_package did,
@@ -324,7 +326,8 @@ TEST_F(Limits, PlainTraceExitsThreeOnHostilePackages) {
   for (size_t i = 0; i < rays.size(); ++i)
     rays[i] = {{float(i) * 0.5f - 16.f, 50.f, float(i % 8) - 4.f}, 0.f, {0.01f, -1.f, 0.02f}, 1e30f};
   const fs::path ray_file = dir / "rays.bin";
-  std::ofstream(ray_file, std::ios::binary).write(reinterpret_cast<const char*>(rays.data()), std::streamsize(rays.size() * sizeof(fmt::Ray)));
+  std::ofstream(ray_file, std::ios::binary)
+      .write(reinterpret_cast<const char*>(rays.data()), std::streamsize(rays.size() * sizeof(fmt::Ray)));
   {  // a mesh BVH node that is its own child
     const std::string p = copy(bases().forest);
     const auto [index, label] = chunk_of(p, fmt::ChunkKind::kMeshSegment, 0);
@@ -333,7 +336,8 @@ TEST_F(Limits, PlainTraceExitsThreeOnHostilePackages) {
       auto* nodes = section<fmt::WideNode<kW>>(chunk, SectionType::kNodes);
       nodes[e[0].node_first].child[0] = 0;  // node 0 (the root) its own child
     });
-    const ToolRun t = run(tool("rtpack-trace") + " " + p + " --rays " + ray_file.string() + " --hits " + (dir / "h.bin").string(), dir);
+    const ToolRun t =
+        run(tool("rtpack-trace") + " " + p + " --rays " + ray_file.string() + " --hits " + (dir / "h.bin").string(), dir);
     EXPECT_EQ(t.code, 3) << t.err;
     EXPECT_TRUE(contains_all(t.err, {label, "node 0 lane 0: child 0 is not after its parent"})) << t.err;
     EXPECT_FALSE(fs::exists(dir / "h.bin"));
@@ -342,11 +346,13 @@ TEST_F(Limits, PlainTraceExitsThreeOnHostilePackages) {
     const std::string p = copy(bases().forest);
     const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoint, 0);
     patch_chunk(p, index, [](uint8_t* chunk, size_t) { section<uint32_t>(chunk, SectionType::kGlobalIds)[0] = 0x7FFFFFFFu; });
-    const ToolRun t = run(tool("rtpack-trace") + " " + p + " --rays " + ray_file.string() + " --hits " + (dir / "h.bin").string(), dir);
+    const ToolRun t =
+        run(tool("rtpack-trace") + " " + p + " --rays " + ray_file.string() + " --hits " + (dir / "h.bin").string(), dir);
     EXPECT_EQ(t.code, 3) << t.err;
     EXPECT_TRUE(contains_all(t.err, {label, "global id 0 = 2147483647 out of range"})) << t.err;
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -24,7 +24,8 @@
 #include "test_trace_util.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -46,8 +47,11 @@ TEST(TileOrder, HilbertIndexIsABijectionWhoseNeighboursShareASide) {
 }
 
 TEST(TileOrder, EveryPixelOnceAndAlignedRunsAreCompactBlocks) {
-  struct Size { int w, h; };
-  for (const Size s : {Size{1, 1}, Size{7, 5}, Size{3, 17}, Size{64, 64}, Size{96, 64}, Size{1280, 720}, Size{130, 66}, Size{1366, 768}}) {
+  struct Size {
+    int w, h;
+  };
+  for (const Size s :
+       {Size{1, 1}, Size{7, 5}, Size{3, 17}, Size{64, 64}, Size{96, 64}, Size{1280, 720}, Size{130, 66}, Size{1366, 768}}) {
     const std::vector<uint32_t> order = hilbert_tile_order(s.w, s.h);
     ASSERT_EQ(order.size(), size_t(s.w) * size_t(s.h)) << s.w << "x" << s.h;
     std::vector<uint8_t> seen(order.size(), 0);
@@ -151,14 +155,13 @@ void expect_packets_equal_single(const Package& p, const std::string& name) {
         o.packet = size;
         std::fill(got.begin(), got.end(), fmt::Hit{-1, 7, 7, 7, 7});
         const PackageTraceStats st = p.tracer->closest(rays.data(), got.data(), rays.size(), o);
-        const std::string what = name + " " + isa_name(isa) + (cull ? " culled" : " unculled") + ", packets of " +
-                                 std::to_string(size);
+        const std::string what =
+            name + " " + isa_name(isa) + (cull ? " culled" : " unculled") + ", packets of " + std::to_string(size);
         size_t bad = 0;
         for (size_t i = 0; i < rays.size(); ++i)
           if (std::memcmp(&want[i], &got[i], sizeof(fmt::Hit)) != 0 && bad++ < 5) {
-            ADD_FAILURE() << what << ": ray " << i << " t " << got[i].t << " vs " << want[i].t << ", prim "
-                          << got[i].prim << " vs " << want[i].prim << ", instance " << got[i].instance << " vs "
-                          << want[i].instance;
+            ADD_FAILURE() << what << ": ray " << i << " t " << got[i].t << " vs " << want[i].t << ", prim " << got[i].prim
+                          << " vs " << want[i].prim << ", instance " << got[i].instance << " vs " << want[i].instance;
           }
         EXPECT_EQ(bad, 0u) << what;
         EXPECT_EQ(st.rays, rays.size()) << what;

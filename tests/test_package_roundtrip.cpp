@@ -22,14 +22,20 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
-const char* kSamples[] = {"samples/khronos/Lantern/glTF/Lantern.gltf", "samples/khronos/Lantern/glTF-Quantized/Lantern.gltf",
-                          "samples/khronos/Lantern/glTF-Draco/Lantern.gltf", "samples/khronos/BoomBox/glTF/BoomBox.gltf",
-                          "samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb", "samples/khronos/Suzanne/glTF/Suzanne.gltf",
-                          "samples/generated/gallery.glb", "samples/generated/forest-small.glb", "samples/generated/far.glb"};
+const char* kSamples[] = {"samples/khronos/Lantern/glTF/Lantern.gltf",
+                          "samples/khronos/Lantern/glTF-Quantized/Lantern.gltf",
+                          "samples/khronos/Lantern/glTF-Draco/Lantern.gltf",
+                          "samples/khronos/BoomBox/glTF/BoomBox.gltf",
+                          "samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb",
+                          "samples/khronos/Suzanne/glTF/Suzanne.gltf",
+                          "samples/generated/gallery.glb",
+                          "samples/generated/forest-small.glb",
+                          "samples/generated/far.glb"};
 
 std::string write(const Scene& s, const fs::path& p, int w, uint64_t target) {
   ClusterOptions co;
@@ -101,7 +107,8 @@ void check_every_triangle_once(const Scene& s, const std::string& path) {
       // Stored vertices are the mesh's local vertices exactly; the record places them.
       for (int r = 0; r < 3; ++r) {
         EXPECT_EQ(rec[k].translation[r], in.transform(r, 3));  // SPEC §2.4: the double translation, exactly
-        for (int c = 0; c < 3; ++c) EXPECT_EQ(rec[k].inverse_linear[3 * r + c], make_instance_record(in).inverse_linear[3 * r + c]);
+        for (int c = 0; c < 3; ++c)
+          EXPECT_EQ(rec[k].inverse_linear[3 * r + c], make_instance_record(in).inverse_linear[3 * r + c]);
       }
       auto visit = [&](uint32_t prim, const std::array<Vec3f, 3>& v3) {
         ++count[{gid[k], prim}];
@@ -110,8 +117,7 @@ void check_every_triangle_once(const Scene& s, const std::string& path) {
       };
       if (slot & fmt::kPieceBit) {
         const fmt::MeshEntry& e = entries[slot & ~fmt::kPieceBit];
-        leaves<W, B>(nodes + e.node_first, blocks + e.block_first, e.root,
-                     visit);
+        leaves<W, B>(nodes + e.node_first, blocks + e.block_first, e.root, visit);
       } else {
         ASSERT_EQ(slot, in.mesh);
         const fmt::MeshEntry& e = seg_entry.at(slot);
@@ -120,8 +126,7 @@ void check_every_triangle_once(const Scene& s, const std::string& path) {
         uint64_t sn, sbk;
         const auto* snodes = sv.get<fmt::WideNode<W>>(fmt::SectionType::kNodes, sn);
         const auto* sblocks = sv.get<fmt::LeafBlock<B>>(fmt::SectionType::kBlocks, sbk);
-        leaves<W, B>(snodes + e.node_first, sblocks + e.block_first, e.root,
-                     visit);
+        leaves<W, B>(snodes + e.node_first, sblocks + e.block_first, e.root, visit);
       }
     }
   }
@@ -232,8 +237,8 @@ TEST_F(Package, TraceFilesAgreeWithEmbree) {
       const auto v = generate_rays(s, k, per_kind, go);
       rays.insert(rays.end(), v.begin(), v.end());
     }
-    std::ofstream(dir / "rays.bin", std::ios::binary).write(reinterpret_cast<const char*>(rays.data()),
-                                                           std::streamsize(rays.size() * sizeof(fmt::Ray)));
+    std::ofstream(dir / "rays.bin", std::ios::binary)
+        .write(reinterpret_cast<const char*>(rays.data()), std::streamsize(rays.size() * sizeof(fmt::Ray)));
     const std::string pkg = write(s, dir / "p.rtp", 8, 4000);
     const std::string tool = std::string(RTP_BINARY_DIR) + "/rtpack-trace " + pkg + " --rays " + (dir / "rays.bin").string();
     ASSERT_EQ(run(tool + " --hits " + (dir / "hits.bin").string() + " 2>/dev/null"), 0);
@@ -269,8 +274,8 @@ TEST_F(Package, TraceReportsTheLoadItDid) {
   const Scene s = import_gltf((source_dir() / "samples/generated/forest-small.glb").string());
   const std::string pkg = write(s, dir / "p.rtp", 8, 4000);
   const std::vector<fmt::Ray> rays(4, fmt::Ray{{0.f, 50.f, 0.f}, 0.f, {0.f, -1.f, 0.f}, 1e30f});
-  std::ofstream(dir / "rays.bin", std::ios::binary).write(reinterpret_cast<const char*>(rays.data()),
-                                                         std::streamsize(rays.size() * sizeof(fmt::Ray)));
+  std::ofstream(dir / "rays.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(rays.data()), std::streamsize(rays.size() * sizeof(fmt::Ray)));
   ASSERT_EQ(run(std::string(RTP_BINARY_DIR) + "/rtpack-trace " + pkg + " --json --rays " + (dir / "rays.bin").string() +
                 " --hits " + (dir / "h.bin").string() + " > " + (dir / "out.json").string()),
             0);
@@ -278,12 +283,13 @@ TEST_F(Package, TraceReportsTheLoadItDid) {
   const nlohmann::json j = nlohmann::json::parse(in);
   uint64_t chunks = 0, raw = 0;
   const PackageReader r(pkg);
-  for (const fmt::TocEntry& e : r.toc())
-    switch (fmt::ChunkKind(e.kind)) {
-      case fmt::ChunkKind::kTopLevelBvh: case fmt::ChunkKind::kBatchingPoints: case fmt::ChunkKind::kDagPool:
-      case fmt::ChunkKind::kInstances: case fmt::ChunkKind::kMeshSegment: case fmt::ChunkKind::kBatchingPoint:
-        ++chunks, raw += e.raw_size;
-        break;
+  for (const fmt::TocEntry& e : r.toc()) switch (fmt::ChunkKind(e.kind)) {
+      case fmt::ChunkKind::kTopLevelBvh:
+      case fmt::ChunkKind::kBatchingPoints:
+      case fmt::ChunkKind::kDagPool:
+      case fmt::ChunkKind::kInstances:
+      case fmt::ChunkKind::kMeshSegment:
+      case fmt::ChunkKind::kBatchingPoint: ++chunks, raw += e.raw_size; break;
       default: break;
     }
   EXPECT_GT(chunks, 6u);
@@ -303,9 +309,9 @@ std::string slurp(const fs::path& p) {
 TEST_F(Package, SameBytesForOneAndTwoThreads) {
   const std::string conv = std::string(RTP_BINARY_DIR) + "/rtpack-convert -q ";
   // forest-small at 300000 triangles a point: instance-box proxies (7.0) beside voxel DAGs.
-  for (const auto& [rel, target] : {std::pair{"samples/generated/forest-small.glb", "20000"},
-                                    std::pair{"samples/generated/forest-small.glb", "300000"},
-                                    std::pair{"samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb", "20000"}}) {
+  for (const auto& [rel, target] :
+       {std::pair{"samples/generated/forest-small.glb", "20000"}, std::pair{"samples/generated/forest-small.glb", "300000"},
+        std::pair{"samples/khronos/FlightHelmet/FlightHelmet-meshopt.glb", "20000"}}) {
     const std::string in = (source_dir() / rel).string();
     ASSERT_EQ(run(conv + in + " --chunk-target " + target + " --threads 1 -o " + (dir / "a.rtp").string()), 0);
     ASSERT_EQ(run(conv + in + " --chunk-target " + target + " --threads 2 -o " + (dir / "b.rtp").string()), 0);
@@ -374,5 +380,6 @@ TEST_F(Package, CorruptionIsAlwaysCaught) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -11,7 +11,8 @@
 #include "core/parallel.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 TEST(ParallelForLowestError, TheLowestFailingIndexIsReportedAndEveryIndexRuns) {
   for (int threads : {1, 2}) {
@@ -38,5 +39,6 @@ TEST(ParallelForLowestError, TheLowestFailingIndexIsReportedAndEveryIndexRuns) {
   EXPECT_EQ(calls, 0);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -18,7 +18,8 @@
 #include "trace/package_tracer.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -29,10 +30,13 @@ class ReaderApi : public ::testing::Test {
     dir = temp_dir("ReaderApi");
     gallery = dir / "gallery.rtp";
     helmet = dir / "helmet.rtp";
-    ToolResult r = run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
+    ToolResult r = run_tool("rtpack-convert",
+                            {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
-    r = run_tool("rtpack-convert", {(source_dir() / "samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf").string(), "-q",
-                                    "--attributes", "normal,uv", "-o", helmet.string()}, dir, {}, 120);
+    r = run_tool("rtpack-convert",
+                 {(source_dir() / "samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf").string(), "-q", "--attributes",
+                  "normal,uv", "-o", helmet.string()},
+                 dir, {}, 120);
     ASSERT_EQ(r.code, 0) << r.err;
   }
   static void TearDownTestSuite() { fs::remove_all(dir); }
@@ -117,7 +121,7 @@ TEST_F(ReaderApi, HitsEqualThePackageTracerRayByRayForEveryThreadCount) {
     tracer->closest(reinterpret_cast<const fmt::Ray*>(rays.data()), want.data(), rays.size(), opt);
     size_t want_hits = 0;
     for (const fmt::Hit& h : want) want_hits += h.instance != fmt::Hit::kNone;
-    ASSERT_GT(want_hits, rays.size() / 50) << p;  // the gallery is sparse: 4 % of these rays hit
+    ASSERT_GT(want_hits, rays.size() / 50) << p;      // the gallery is sparse: 4 % of these rays hit
     EXPECT_EQ(want[2500].instance, fmt::Hit::kNone);  // the NaN ray
     std::vector<uint8_t> want_occ(rays.size());
     tracer->any(reinterpret_cast<const fmt::Ray*>(rays.data()), want_occ.data(), rays.size(), opt);
@@ -294,8 +298,8 @@ TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
     rtpack::Hit h{};
     auto [c7, m7] = code_of([&] { pkg.trace(&r, &h, 1, o); });
     EXPECT_EQ(c7, 1) << packet;
-    EXPECT_NE(m7.find("TraceOptions::packet = " + std::to_string(packet) + ": rays per packet are 4, 8 or 16"),
-              std::string::npos) << m7;
+    EXPECT_NE(m7.find("TraceOptions::packet = " + std::to_string(packet) + ": rays per packet are 4, 8 or 16"), std::string::npos)
+        << m7;
   }
   auto [c8, m8] = code_of([&] { rtpack::tile_order(4, -1); });
   EXPECT_EQ(c8, 1);
@@ -305,5 +309,6 @@ TEST_F(ReaderApi, ErrorsCarryTheToolsCodesAndNameTheFile) {
   EXPECT_NE(m9.find("PixelOrder 7 is not an order"), std::string::npos) << m9;
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -8,7 +8,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -44,11 +45,12 @@ TEST_F(Feature, TriangleFan) {
 TEST_F(Feature, NonIndexedAndIndexWidths) {
   GltfBuilder b;
   const int pos = b.add_positions({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 2, 2, 0, 2, 0, 0});
-  b.j["meshes"].push_back({{"primitives",
-                            {{{"attributes", {{"POSITION", pos}}}},  // non-indexed: 2 triangles
-                             {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint8_t>{5, 4, 3})}},
-                             {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint16_t>{0, 2, 4})}},
-                             {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint32_t>{1, 3, 5})}}}}});
+  b.j["meshes"].push_back(
+      {{"primitives",
+        {{{"attributes", {{"POSITION", pos}}}},  // non-indexed: 2 triangles
+         {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint8_t>{5, 4, 3})}},
+         {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint16_t>{0, 2, 4})}},
+         {{"attributes", {{"POSITION", pos}}}, {"indices", b.add_indices(std::vector<uint32_t>{1, 3, 5})}}}}});
   b.set_scene({b.add_node({{"mesh", 0}})});
   const Scene s = load(b);
   ASSERT_EQ(s.meshes.size(), 1u);
@@ -77,8 +79,8 @@ TEST_F(Feature, SparseAccessorOverridesAndZeroBase) {
   GltfBuilder b = one_triangle();
   const int iv = b.add_view(std::vector<uint8_t>{2, 0, 0, 0});
   const int vv = b.add_view(std::vector<float>{0, 7, 0});
-  b.j["accessors"][0]["sparse"] = {{"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", 5121}}},
-                                   {"values", {{"bufferView", vv}}}};
+  b.j["accessors"][0]["sparse"] = {
+      {"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", 5121}}}, {"values", {{"bufferView", vv}}}};
   EXPECT_EQ(load(b).meshes[0].positions[2], (Vec3f{0, 7, 0}));
   // No bufferView: zeros, then the sparse values.
   b.j["accessors"][0].erase("bufferView");
@@ -91,9 +93,11 @@ TEST_F(Feature, QuantizedPositions) {
   GltfBuilder b;
   b.j["extensionsRequired"] = {"KHR_mesh_quantization"};
   // normalized signed short: 32767 -> 1.0, -32768 -> -1.0 (clamped)
-  const int ns = b.add_accessor(b.add_view(std::vector<int16_t>{0, 0, 0, 32767, 0, 0, -32768, 16384, 0, 0}), 5122, "VEC3", 3, true);
+  const int ns =
+      b.add_accessor(b.add_view(std::vector<int16_t>{0, 0, 0, 32767, 0, 0, -32768, 16384, 0, 0}), 5122, "VEC3", 3, true);
   // non-normalized unsigned byte: raw integers
-  const int ub = b.add_accessor(b.add_view(std::vector<uint8_t>{0, 0, 0, 0, 200, 0, 0, 0, 0, 3, 0, 0}, 4), 5121, "VEC3", 3, false);
+  const int ub =
+      b.add_accessor(b.add_view(std::vector<uint8_t>{0, 0, 0, 0, 200, 0, 0, 0, 0, 3, 0, 0}, 4), 5121, "VEC3", 3, false);
   b.add_mesh(ns);
   b.add_mesh(ub);
   b.set_scene({b.add_node({{"mesh", 0}}), b.add_node({{"mesh", 1}, {"scale", {0.5, 0.5, 0.5}}})});
@@ -111,7 +115,8 @@ TEST_F(Feature, GpuInstancingWithNormalizedRotation) {
   const int t = b.add_accessor(b.add_view(std::vector<float>{10, 0, 0, 20, 0, 0, 30, 0, 0}), 5126, "VEC3", 3);
   // 90° about z as a normalized short quaternion (0, 0, 0.7071, 0.7071), identity, and 180° about y.
   const int16_t h = 23170;
-  const int r = b.add_accessor(b.add_view(std::vector<int16_t>{0, 0, h, h, 0, 0, 0, 32767, 0, 32767, 0, 0}), 5122, "VEC4", 3, true);
+  const int r =
+      b.add_accessor(b.add_view(std::vector<int16_t>{0, 0, h, h, 0, 0, 0, 32767, 0, 32767, 0, 0}), 5122, "VEC4", 3, true);
   const int sc = b.add_accessor(b.add_view(std::vector<float>{1, 1, 1, 2, 2, 2, 1, 1, 1}), 5126, "VEC3", 3);
   b.j["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"TRANSLATION", t}, {"ROTATION", r}, {"SCALE", sc}};
   b.j["nodes"][0]["translation"] = {0, 100, 0};  // the node transform applies after the instance TRS
@@ -201,11 +206,10 @@ TEST_F(Feature, WarningsForSkippedContent) {
   b.j["textures"] = {{{"source", 0}}};
   b.set_scene({0, 1, 2});
   const Scene s = load(b);
-  EXPECT_EQ(s.warnings, (std::vector<std::string>{
-                            "/meshes/1/primitives/3: no POSITION attribute, primitive skipped",
-                            "/meshes/1: 3 point/line primitives skipped",
-                            "/meshes/1: no triangles; its instances are dropped",
-                            "/meshes/2/primitives/0: dropped 2 triangles with NaN/Inf positions"}));
+  EXPECT_EQ(s.warnings, (std::vector<std::string>{"/meshes/1/primitives/3: no POSITION attribute, primitive skipped",
+                                                  "/meshes/1: 3 point/line primitives skipped",
+                                                  "/meshes/1: no triangles; its instances are dropped",
+                                                  "/meshes/2/primitives/0: dropped 2 triangles with NaN/Inf positions"}));
   ASSERT_EQ(s.meshes.size(), 2u);
   EXPECT_EQ(s.meshes[1].triangle_count(), 1u);
   EXPECT_EQ(s.meshes[1].source[0].triangle, 2u);  // the surviving triangle keeps its number
@@ -245,5 +249,6 @@ TEST_F(Feature, Determinism) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -16,7 +16,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -34,8 +35,7 @@ ToolRun run_tool(const std::string& tool, const std::string& args, const fs::pat
 #else
   (void)limit_kib;  // ASan reserves terabytes of address space: no limit there
 #endif
-  cmd += std::string(RTP_BINARY_DIR) + "/" + tool + " " + args + " > " + (dir / "out").string() + " 2> " +
-         (dir / "err").string();
+  cmd += std::string(RTP_BINARY_DIR) + "/" + tool + " " + args + " > " + (dir / "out").string() + " 2> " + (dir / "err").string();
   const int status = std::system(cmd.c_str());
   const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return {code, slurp(dir / "err")};
@@ -56,8 +56,8 @@ std::pair<std::string, ExitCode> import_error(const std::string& path) {
 // array of it under GCC.
 std::string write_with_buffers(GltfBuilder& b, nlohmann::json extra_buffers, const fs::path& p) {
   nlohmann::json d = b.j;
-  d["buffers"] = nlohmann::json::array(
-      {{{"byteLength", b.bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(b.bin)}}});
+  d["buffers"] =
+      nlohmann::json::array({{{"byteLength", b.bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(b.bin)}}});
   for (auto& x : extra_buffers) d["buffers"].push_back(x);
   std::ofstream(p, std::ios::binary) << d.dump();
   return p.string();
@@ -114,8 +114,8 @@ TEST_F(HostileGltf, SparseIndicesComponentTypeIsAString) {
   GltfBuilder b = one_triangle();
   const int iv = b.add_view(std::vector<uint16_t>{1, 0});
   const int vv = b.add_view(std::vector<float>{9, 9, 9});
-  b.j["accessors"][0]["sparse"] = {{"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", "5123"}}},
-                                   {"values", {{"bufferView", vv}}}};
+  b.j["accessors"][0]["sparse"] = {
+      {"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", "5123"}}}, {"values", {{"bufferView", vv}}}};
   expect(b, "/accessors/0/sparse/indices/componentType: not an integer");
 }
 
@@ -230,8 +230,7 @@ TEST_F(HostileGltf, AccessorWithoutBufferViewIsBounded) {
   b.j["accessors"][0].erase("bufferView");
   b.j["accessors"][0]["count"] = 100000000;  // 1.2 GB of zeros (3.4 GB as read) from a 1 KB file
   b.j["meshes"][0]["primitives"][0].erase("indices");
-  expect_convert(b.write_gltf(dir / "t.gltf"), {"/accessors/0/count: 100000000 elements without a bufferView"},
-                 1000000);
+  expect_convert(b.write_gltf(dir / "t.gltf"), {"/accessors/0/count: 100000000 elements without a bufferView"}, 1000000);
 }
 
 TEST_F(HostileGltf, IndicesAccessorWithoutBufferViewNamesThePrimitive) {  // was tinygltf's "accessor[1] invalid bufferView"
@@ -250,8 +249,7 @@ TEST_F(HostileGltf, MeshoptDeclaredSizeBeyondTheCodecsExpansion) {
   nlohmann::json fb = kFallback;
   fb["byteLength"] = 12 * count;
   expect_convert(write_with_buffers(b, nlohmann::json::array({fb}), dir / "t.gltf"),
-                 {"/bufferViews/0/extensions/EXT_meshopt_compression: meshopt cannot decode 3221225472 bytes from 36"},
-                 1000000);
+                 {"/bufferViews/0/extensions/EXT_meshopt_compression: meshopt cannot decode 3221225472 bytes from 36"}, 1000000);
 }
 
 // --- transforms that overflow float -------------------------------------------------------------------
@@ -279,9 +277,9 @@ class HostileMetadata : public HostileGltf {
  protected:
   std::string pkg = (dir / "p.rtp").string();
   void SetUp() override {
-    const ToolRun r = run_tool("rtpack-convert", "-q --zstd-level 0 --no-dag " +
-                                                     (source_dir() / "samples/generated/gallery.glb").string() + " -o " + pkg,
-                               dir);
+    const ToolRun r =
+        run_tool("rtpack-convert",
+                 "-q --zstd-level 0 --no-dag " + (source_dir() / "samples/generated/gallery.glb").string() + " -o " + pkg, dir);
     ASSERT_EQ(r.code, 0) << r.err;
   }
   // Replaces `from` by `to` (same length) inside the first camera of the metadata JSON, CRCs re-sealed.
@@ -306,8 +304,8 @@ class HostileMetadata : public HostileGltf {
     ASSERT_TRUE(done);
   }
   ToolRun trace() {
-    return run_tool("rtpack-trace", pkg + " --make-camera-rays 8x8 --rays " + (dir / "r.bin").string() + " --hits " +
-                                        (dir / "h.bin").string(),
+    return run_tool("rtpack-trace",
+                    pkg + " --make-camera-rays 8x8 --rays " + (dir / "r.bin").string() + " --hits " + (dir / "h.bin").string(),
                     dir);
   }
 };
@@ -341,5 +339,6 @@ TEST_F(HostileMetadata, CameraWithoutYfov) {
   EXPECT_NE(r.err.find("/cameras/0/yfov: missing"), std::string::npos) << r.err;
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

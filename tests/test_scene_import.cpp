@@ -11,7 +11,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using Tri = std::array<Vec3d, 3>;
@@ -39,7 +40,8 @@ size_t unmatched(const std::vector<Tri>& a, const std::vector<Tri>& b, double to
   const double cell = tol > 0 ? 4 * tol : 1e-4;  // a centroid moves by at most tol
   auto key = [&](const Tri& t) {
     const Vec3d c = (t[0] + t[1] + t[2]) * (1.0 / 3.0);
-    return std::array<int64_t, 3>{int64_t(std::floor(c.x / cell)), int64_t(std::floor(c.y / cell)), int64_t(std::floor(c.z / cell))};
+    return std::array<int64_t, 3>{int64_t(std::floor(c.x / cell)), int64_t(std::floor(c.y / cell)),
+                                  int64_t(std::floor(c.z / cell))};
   };
   std::map<std::array<int64_t, 3>, std::vector<size_t>> grid;
   for (size_t i = 0; i < b.size(); ++i) grid[key(b[i])].push_back(i);
@@ -60,11 +62,17 @@ size_t unmatched(const std::vector<Tri>& a, const std::vector<Tri>& b, double to
             for (int r = 0; r < 3; ++r) {
               const double d = std::max({dist_inf(t[0], b[j][size_t(r)]), dist_inf(t[1], b[j][size_t((r + 1) % 3)]),
                                          dist_inf(t[2], b[j][size_t((r + 2) % 3)])});
-              if (d < best_d) { best_d = d; best = j; }
+              if (d < best_d) {
+                best_d = d;
+                best = j;
+              }
             }
           }
         }
-    if (best_d <= tol) { used[best] = true; found = true; }
+    if (best_d <= tol) {
+      used[best] = true;
+      found = true;
+    }
     missing += !found;
   }
   return missing;
@@ -86,7 +94,8 @@ TEST(ImportGlb, BinChunkAndABufferFileNamedLikeItsInternalNameBothLoad) {
   std::ofstream(dir / "rtpack-glb-bin-chunk", std::ios::binary)
       .write(reinterpret_cast<const char*>(far_tri.data()), std::streamsize(far_tri.size() * sizeof(float)));
   b.j["bufferViews"].push_back({{"buffer", 1}, {"byteOffset", 0}, {"byteLength", 36}});
-  b.j["accessors"].push_back({{"bufferView", int(b.j["bufferViews"].size()) - 1}, {"componentType", 5126}, {"type", "VEC3"}, {"count", 3}});
+  b.j["accessors"].push_back(
+      {{"bufferView", int(b.j["bufferViews"].size()) - 1}, {"componentType", 5126}, {"type", "VEC3"}, {"count", 3}});
   b.j["meshes"].push_back({{"primitives", {{{"attributes", {{"POSITION", int(b.j["accessors"].size()) - 1}}}}}}});
   b.set_scene({0, b.add_node({{"mesh", 1}})});
   std::string glb = b.glb_bytes();  // its JSON lists buffer 0 only: add buffer 1, re-assemble
@@ -108,7 +117,8 @@ TEST(ImportGlb, BinChunkAndABufferFileNamedLikeItsInternalNameBothLoad) {
 
   const Scene s = import_gltf((dir / "two.glb").string(), {});
   const std::vector<Tri> got = world_triangles(s);
-  const std::vector<Tri> want = {Tri{Vec3d{0, 0, 0}, Vec3d{1, 0, 0}, Vec3d{0, 1, 0}}, Tri{Vec3d{5, 5, 5}, Vec3d{7, 5, 5}, Vec3d{5, 7, 5}}};
+  const std::vector<Tri> want = {Tri{Vec3d{0, 0, 0}, Vec3d{1, 0, 0}, Vec3d{0, 1, 0}},
+                                 Tri{Vec3d{5, 5, 5}, Vec3d{7, 5, 5}, Vec3d{5, 7, 5}}};
   ASSERT_EQ(got.size(), 2u);
   EXPECT_EQ(unmatched(want, got, 0.0), 0u) << "a buffer was read from the wrong place";
   EXPECT_EQ(s.input.buffer_files, 1u);
@@ -159,9 +169,9 @@ void walk_json(const nlohmann::json& nodes, int n, const std::array<double, 16>&
     const auto q = node.value("rotation", std::vector<double>{0, 0, 0, 1});
     const auto s = node.value("scale", std::vector<double>{1, 1, 1});
     const double x = q[0], y = q[1], z = q[2], w = q[3];
-    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
-                         2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
-                         2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};  // column-major
+    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+                         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};  // column-major
     for (int c = 0; c < 3; ++c)
       for (int rr = 0; rr < 3; ++rr) local[size_t(c * 4 + rr)] = r[c * 3 + rr] * s[size_t(c)];
     for (int rr = 0; rr < 3; ++rr) local[size_t(12 + rr)] = t[size_t(rr)];
@@ -197,8 +207,10 @@ TEST(ImportReal, GalleryInstancesMirrorAndBounds) {
     const Instance& in = s.instances[i];
     EXPECT_EQ(int(in.node), node);
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) EXPECT_NEAR(in.transform(r, c), g[size_t(c * 4 + r)], 1e-5 * (1 + std::abs(g[size_t(c * 4 + r)])));
-    const double det = g[0] * (g[5] * g[10] - g[9] * g[6]) - g[4] * (g[1] * g[10] - g[9] * g[2]) + g[8] * (g[1] * g[6] - g[5] * g[2]);
+      for (int c = 0; c < 4; ++c)
+        EXPECT_NEAR(in.transform(r, c), g[size_t(c * 4 + r)], 1e-5 * (1 + std::abs(g[size_t(c * 4 + r)])));
+    const double det =
+        g[0] * (g[5] * g[10] - g[9] * g[6]) - g[4] * (g[1] * g[10] - g[9] * g[2]) + g[8] * (g[1] * g[6] - g[5] * g[2]);
     EXPECT_EQ(in.mirrored, det < 0) << "instance " << i;
     mirrored += in.mirrored;
     EXPECT_EQ(s.meshes[in.mesh].primitives[0].gltf_mesh, j["nodes"][size_t(node)]["mesh"].get<uint32_t>());
@@ -326,5 +338,6 @@ TEST(ImportReal, Forest2kInstancedTriangleCount) {
   EXPECT_GT(s.instanced_triangles(), 100 * s.unique_triangles() / 10);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

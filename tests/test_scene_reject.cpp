@@ -10,7 +10,8 @@
 #include "scene/import.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -215,7 +216,8 @@ TEST_F(Reject, GlbOf4GiBOrMore) {
   std::ofstream(p, std::ios::binary) << one_triangle().glb_bytes();
   fs::resize_file(p, (uint64_t(1) << 32) + 16);
   const auto [msg, code] = import_error(p.string());
-  EXPECT_EQ(msg, "file is 4294967312 bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
+  EXPECT_EQ(msg,
+            "file is 4294967312 bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
   EXPECT_EQ(code, ExitCode::kInputInvalid);
 }
 
@@ -229,8 +231,8 @@ TEST_F(Reject, SparseIndexOutOfRange) {
   GltfBuilder b = one_triangle();
   const int iv = b.add_view(std::vector<uint16_t>{5, 0});
   const int vv = b.add_view(std::vector<float>{9, 9, 9});
-  b.j["accessors"][0]["sparse"] = {{"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", 5123}}},
-                                   {"values", {{"bufferView", vv}}}};
+  b.j["accessors"][0]["sparse"] = {
+      {"count", 1}, {"indices", {{"bufferView", iv}, {"componentType", 5123}}}, {"values", {{"bufferView", vv}}}};
   expect(b, "/meshes/0/primitives/0/attributes/POSITION/sparse/indices: index 5 out of range (3 elements)");
 }
 
@@ -267,5 +269,6 @@ TEST_F(Reject, BitFlippedSamplesNeverCrash) {
   EXPECT_GT(rejected, 0);  // the flips must hit something
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -11,7 +11,8 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -31,7 +32,8 @@ TEST_F(Conventions, EveryToolAnswersVersion) {
   for (const std::string tool : {"rtpack-convert", "rtpack-inspect", "rtpack-trace", "rtpack-bench", "rtpack-make-scene"}) {
     const ToolResult r = run_tool(tool, {"--version"}, dir);
     EXPECT_EQ(r.code, 0) << tool << ": " << r.err;
-    EXPECT_TRUE(std::regex_match(r.out, std::regex(tool + " [0-9]+\\.[0-9]+\\.[0-9]+ " + format + "\n"))) << tool << ": '" << r.out << "'";
+    EXPECT_TRUE(std::regex_match(r.out, std::regex(tool + " [0-9]+\\.[0-9]+\\.[0-9]+ " + format + "\n")))
+        << tool << ": '" << r.out << "'";
     EXPECT_TRUE(r.err.empty()) << tool << ": " << r.err;
   }
 }
@@ -40,7 +42,8 @@ TEST_F(Conventions, NonGltfInputIsNamedWithAConversionHint) {
   const struct {
     std::string file, bytes, says;
   } cases[] = {
-      {"bunny.obj", "# Blender v2.9 OBJ File\nmtllib bunny.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "looks like a Wavefront OBJ file"},
+      {"bunny.obj", "# Blender v2.9 OBJ File\nmtllib bunny.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+       "looks like a Wavefront OBJ file"},
       {"plain.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "looks like a Wavefront OBJ file"},
       {"model.fbx", std::string("Kaydara FBX Binary  \0\x1a\0", 23), "looks like an FBX file"},
       {"scan.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\n", "looks like a PLY file"},
@@ -62,7 +65,9 @@ TEST_F(Conventions, NonGltfInputIsNamedWithAConversionHint) {
   }
   // A package given as input is named as one.
   const fs::path pkg = dir / "g.rtp";
-  ASSERT_EQ(run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", pkg.string()}, dir).code, 0);
+  ASSERT_EQ(
+      run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", pkg.string()}, dir).code,
+      0);
   const ToolResult r = run_tool("rtpack-convert", {pkg.string(), "--dry-run"}, dir);
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("an rtpack package (.rtp): it is already converted"), std::string::npos) << r.err;
@@ -90,7 +95,8 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   // FlightHelmet.gltf: the JSON and its 3 MB .bin are read; its 15 images are named, never read (the
   // texture files are not in samples/, so they count 0 bytes).
   const fs::path helmet = source_dir() / "samples/khronos/FlightHelmet/glTF/FlightHelmet.gltf";
-  const ToolResult r = run_tool("rtpack-convert", {helmet.string(), "--json", "-q", "-o", (dir / "h.rtp").string()}, dir, {}, 120);
+  const ToolResult r =
+      run_tool("rtpack-convert", {helmet.string(), "--json", "-q", "-o", (dir / "h.rtp").string()}, dir, {}, 120);
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   const uint64_t gltf = fs::file_size(helmet), bin = fs::file_size(helmet.parent_path() / "FlightHelmet.bin");
@@ -112,11 +118,12 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   // the --json reader what exists there).
   const fs::path outside = dir.parent_path() / (dir.filename().string() + "-outside.png");
   std::ofstream(outside, std::ios::binary) << std::string(777, 'y');
-  d["images"] = nlohmann::json::array({{{"uri", "tex%20a.png"}}, {{"uri", "missing.png"}},
-                                       {{"uri", "../" + outside.filename().string()}}});
+  d["images"] =
+      nlohmann::json::array({{{"uri", "tex%20a.png"}}, {{"uri", "missing.png"}}, {{"uri", "../" + outside.filename().string()}}});
   std::ofstream(dir / "t.gltf", std::ios::binary | std::ios::trunc) << d.dump();
   write("tex a.png", std::string(1234, 'x'));
-  const ToolResult t = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "--json", "-q", "-o", (dir / "t.rtp").string()}, dir);
+  const ToolResult t =
+      run_tool("rtpack-convert", {(dir / "t.gltf").string(), "--json", "-q", "-o", (dir / "t.rtp").string()}, dir);
   ASSERT_EQ(t.code, 0) << t.err;
   const auto tj = nlohmann::json::parse(t.out);
   EXPECT_EQ(tj["input_bytes"].get<uint64_t>(), fs::file_size(dir / "t.gltf") + fs::file_size(dir / "t.bin"));
@@ -125,7 +132,7 @@ TEST_F(Conventions, InputBytesAreWhatTheConverterReads) {
   EXPECT_EQ(tj["input_files"]["image_file_bytes_not_read"].get<uint64_t>(), 1234u);
   const ToolResult text = run_tool("rtpack-convert", {(dir / "t.gltf").string(), "-o", (dir / "t.rtp").string()}, dir);
   ASSERT_EQ(text.code, 0) << text.err;
-  EXPECT_NE(text.out.find(" read (" ), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find(" read ("), std::string::npos) << text.out;
   EXPECT_NE(text.out.find(" glTF + 1 buffer "), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("3 images not read"), std::string::npos) << text.out;
   // One triangle placed once: no bytes per instance (they would be the whole package's).
@@ -159,8 +166,9 @@ TEST_F(Conventions, EveryJsonOutputCarriesTheSchemaVersion) {
       {"rtpack-inspect", {pkg, "--json", "--verify", "--chunks"}},
       {"rtpack-trace", {pkg, "--rays", rays, "--hits", hits, "--json"}},
       {"rtpack-trace", {pkg, "--image", (dir / "i.png").string(), "--size", "8x8", "--json"}},
-      {"rtpack-bench", {suz, "--rays", "256", "--reps", "1", "--threads", "1", "--width", "4", "--order", "octant",
-                        "--kinds", "random", "--json"}},
+      {"rtpack-bench",
+       {suz, "--rays", "256", "--reps", "1", "--threads", "1", "--width", "4", "--order", "octant", "--kinds", "random",
+        "--json"}},
       {"rtpack-bench", {suz, "--convert", "--reps", "1", "--threads", "1", "--json"}},
   };
   for (const auto& r : runs) {
@@ -261,5 +269,6 @@ TEST_F(Conventions, UsageErrorsAndFailedVerifyUnderJsonAreEnvelopes) {
   EXPECT_GE(vj["problems"]["count"].get<uint64_t>(), 1u);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -8,7 +8,8 @@
 #include "gltf_builder.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -23,8 +24,8 @@ std::string slurp(const fs::path& p) {
 }
 
 ToolRun tool(const std::string& name, const std::string& args, const fs::path& dir) {
-  const std::string cmd = std::string(RTP_BINARY_DIR) + "/" + name + " " + args + " > " + (dir / "out").string() +
-                          " 2> " + (dir / "err").string();
+  const std::string cmd =
+      std::string(RTP_BINARY_DIR) + "/" + name + " " + args + " > " + (dir / "out").string() + " 2> " + (dir / "err").string();
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "out"), slurp(dir / "err")};
 }
@@ -80,14 +81,16 @@ TEST_F(Convert, TextSummaryNamesCountsAndBounds) {
 }
 
 TEST_F(Convert, UniformSubdivisionQuadruples) {
-  const ToolRun r = convert("--dry-run --json --subdivide 2 " + (source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), dir);
+  const ToolRun r =
+      convert("--dry-run --json --subdivide 2 " + (source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["unique_triangles"].get<uint64_t>(), 5394u * 16u);
 }
 
 TEST_F(Convert, AdaptiveSubdivisionMeetsTarget) {
-  const ToolRun r = convert("--dry-run --json --subdivide-to 0.5 " + (source_dir() / "samples/generated/gallery.glb").string(), dir);
+  const ToolRun r =
+      convert("--dry-run --json --subdivide-to 0.5 " + (source_dir() / "samples/generated/gallery.glb").string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   const auto& per = j["preparation"]["adaptive"]["per_mesh"];
@@ -127,7 +130,7 @@ TEST_F(Convert, MissingInputExitCode) {
 
 TEST_F(Convert, UsageErrors) {
   const std::string p = (source_dir() / "samples/generated/gallery.glb").string();
-  EXPECT_EQ(convert(p, dir).code, 1);                          // no output and no --dry-run
+  EXPECT_EQ(convert(p, dir).code, 1);                           // no output and no --dry-run
   EXPECT_EQ(convert("--dry-run --scene 4 " + p, dir).code, 1);  // no such scene
   EXPECT_EQ(convert("--dry-run --subdivide 1 --subdivide-to 2 " + p, dir).code, 1);
   EXPECT_EQ(convert("--bogus " + p, dir).code, 1);
@@ -140,7 +143,8 @@ TEST_F(Convert, UsageErrors) {
            {"--weld -1", "--weld: expected a number >= 0, got -1"},
            {"--weld 1e400", "--weld: expected a number >= 0, got 1e400"},
            {"--chunk-target x", "--chunk-target: expected a number from 1 to 9.0072e+15, got 'x'"},
-           {"--chunk-target 99999999999999999999999", "--chunk-target: expected a number from 1 to 9.0072e+15, got 99999999999999999999999"}}) {
+           {"--chunk-target 99999999999999999999999",
+            "--chunk-target: expected a number from 1 to 9.0072e+15, got 99999999999999999999999"}}) {
     const ToolRun r = convert("--dry-run " + args + " " + p, dir);
     EXPECT_EQ(r.code, 1) << args;
     EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
@@ -183,7 +187,8 @@ TEST_F(Convert, FastZstdLevels) {
     const fs::path rays = dir / "r.rays", out = dir / std::string("h").append(std::to_string(level)).append(".hits");
     ASSERT_EQ(std::system((bin + "rtpack-inspect --verify " + pkg + " > /dev/null").c_str()), 0) << level;
     ASSERT_EQ(std::system((bin + "rtpack-trace " + pkg + " --make-camera-rays 16x16 --rays " + rays.string() + " --hits " +
-                           out.string() + " > /dev/null").c_str()),
+                           out.string() + " > /dev/null")
+                              .c_str()),
               0)
         << level;
     hits[level] = slurp(out);
@@ -212,5 +217,6 @@ TEST_F(Convert, WarningsGoToStderr) {
   EXPECT_TRUE(r.err.empty());
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

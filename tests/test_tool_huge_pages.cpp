@@ -11,7 +11,8 @@
 #include "tools/malloc_policy.h"  // thp_mode(): the kernel's mode, read as the tool reads it
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -60,8 +61,7 @@ TEST_F(HugePages, ConvertHeapsUseThemAndTheTunableTurnsThemOff) {
   EXPECT_EQ(m.state, "on (glibc.malloc.hugetlb=1)") << on.err;
   // The re-executed process really holds huge pages: FlightHelmet's heaps peak near 40 MiB.
   EXPECT_GE(m.huge_mib, 2.0) << on.err;
-  EXPECT_EQ(o.huge_mib, 0.0) << "without the tunable no heap is madvised and no buffer of FlightHelmet is 4 MiB: "
-                             << off.err;
+  EXPECT_EQ(o.huge_mib, 0.0) << "without the tunable no heap is madvised and no buffer of FlightHelmet is 4 MiB: " << off.err;
 #endif
 }
 

@@ -13,7 +13,8 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -23,7 +24,8 @@ class ConvertProgress : public ::testing::Test {
   static void SetUpTestSuite() {
     dir = temp_dir("ConvertProgress");
     forest = dir / "forest.glb";
-    const ToolResult r = run_tool("rtpack-make-scene", {"forest", "--count", "5000", "--refine", "0", "-o", forest.string()}, dir);
+    const ToolResult r =
+        run_tool("rtpack-make-scene", {"forest", "--count", "5000", "--refine", "0", "-o", forest.string()}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
   }
   static void TearDownTestSuite() { fs::remove_all(dir); }
@@ -56,7 +58,8 @@ TEST_F(ConvertProgress, ImportReportsTheBoundsOfInstancesPassByPass) {
       const Vec3d v = to_d(m.positions[vi]);
       Vec3d w;
       for (int row = 0; row < 3; ++row)
-        w[row] = inst.transform(row, 0) * v.x + inst.transform(row, 1) * v.y + inst.transform(row, 2) * v.z + inst.transform(row, 3);
+        w[row] =
+            inst.transform(row, 0) * v.x + inst.transform(row, 1) * v.y + inst.transform(row, 2) * v.z + inst.transform(row, 3);
       all.grow(w);
     }
   }
@@ -67,7 +70,8 @@ TEST_F(ConvertProgress, ImportReportsTheBoundsOfInstancesPassByPass) {
 }
 
 TEST_F(ConvertProgress, LinesShowPeakRssAndTheChunksStageMovesByWork) {
-  const ToolResult r = run_tool("rtpack-convert", {forest.string(), "-o", (dir / "f.rtp").string()}, dir, {"RTP_PROGRESS=1"}, 300);
+  const ToolResult r =
+      run_tool("rtpack-convert", {forest.string(), "-o", (dir / "f.rtp").string()}, dir, {"RTP_PROGRESS=1"}, 300);
   ASSERT_EQ(r.code, 0) << r.err;
   std::istringstream in(r.err);
   std::string line, stage;
@@ -106,7 +110,8 @@ TEST_F(ConvertProgress, LinesShowPeakRssAndTheChunksStageMovesByWork) {
 }
 
 TEST_F(ConvertProgress, VerboseAddsStageLinesAndTheDefaultDoesNot) {
-  const ToolResult v = run_tool("rtpack-convert", {forest.string(), "-v", "--threads", "1", "-o", (dir / "v.rtp").string()}, dir, {}, 300);
+  const ToolResult v =
+      run_tool("rtpack-convert", {forest.string(), "-v", "--threads", "1", "-o", (dir / "v.rtp").string()}, dir, {}, 300);
   ASSERT_EQ(v.code, 0) << v.err;
   for (const char* s : {"stage import", "stage prepare", "stage batching points", "stage chunks", "peak RSS"})
     EXPECT_NE(v.err.find(s), std::string::npos) << s << "\n" << v.err;
@@ -121,5 +126,6 @@ TEST_F(ConvertProgress, VerboseAddsStageLinesAndTheDefaultDoesNot) {
   EXPECT_EQ(slurp_file(dir / "v.rtp"), slurp_file(dir / "d.rtp"));
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

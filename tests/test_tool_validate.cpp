@@ -24,7 +24,8 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -107,7 +108,8 @@ TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
     SCOPED_TRACE(src.string());
     const std::string pkg = (dir / (src.stem().string() + ".rtp")).string();
     convert_to(src.string(), pkg, 30);
-    const ToolResult a = run_tool("rtpack-validate", {pkg, "--source", src.string(), "--rays", ray_count(), "--json"}, dir, {}, 300);
+    const ToolResult a =
+        run_tool("rtpack-validate", {pkg, "--source", src.string(), "--rays", ray_count(), "--json"}, dir, {}, 300);
     ASSERT_EQ(a.code, 0) << a.out << a.err;
     const auto j = nlohmann::json::parse(a.out);
     EXPECT_TRUE(j["ok"].get<bool>());
@@ -156,8 +158,8 @@ TEST(ValidateTool, PassesOnSharedAssets) {
     SCOPED_TRACE(src.string());
     const std::string pkg = (dir / (src.stem().string() + ".rtp")).string();
     convert_to(src.string(), pkg, 30);
-    const ToolResult r = run_tool("rtpack-validate", {pkg, "--source", src.string(), "--rays", sanitized() ? "100" : "1000",
-                                                      "--json"}, dir, {}, 600);
+    const ToolResult r = run_tool(
+        "rtpack-validate", {pkg, "--source", src.string(), "--rays", sanitized() ? "100" : "1000", "--json"}, dir, {}, 600);
     ASSERT_EQ(r.code, 0) << r.out << r.err;
     const auto j = nlohmann::json::parse(r.out);
     EXPECT_TRUE(j["ok"].get<bool>()) << r.out;
@@ -176,7 +178,8 @@ TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
   const std::string src = (source_dir() / "samples/generated/gallery.glb").string();
   const std::string pkg = (dir / "gallery.rtp").string();
   convert_to(src, pkg, 8, 0);
-  const ToolResult good = run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+  const ToolResult good =
+      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
   ASSERT_EQ(good.code, 0) << good.out << good.err;
   ConvertSettings dry;
   dry.input = src;
@@ -195,7 +198,8 @@ TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
     for (const fmt::Hit& h : hits)
       if (h.t < INFINITY) ++count[{scene.instances[h.instance].mesh, h.prim}];
     ASSERT_FALSE(count.empty());
-    const auto most = std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    const auto most =
+        std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     mesh = most->first.first, prim = most->first.second;
     const AlignedBytes mb = r.read(size_t(r.find(fmt::ChunkKind::kMeshes, 0)));
     const ChunkView mv(mb.data(), mb.size(), uint32_t(fmt::ChunkKind::kMeshes), "mesh table");
@@ -224,7 +228,8 @@ TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
     }
   });
   ASSERT_GT(collapsed, 0u);
-  const ToolResult bad = run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+  const ToolResult bad =
+      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
   EXPECT_EQ(bad.code, 3) << bad.out << bad.err;
   EXPECT_NE(bad.out.find("FAIL primary ray "), std::string::npos) << bad.out;
   EXPECT_NE(bad.out.find("FAILED: some answers are wrong"), std::string::npos) << bad.out;
@@ -240,7 +245,8 @@ TEST(ValidateTool, UsageErrorsAreClear) {
   const ToolResult kind = run_tool("rtpack-validate", {pkg, "--kinds", "primary,sideways"}, dir);
   EXPECT_EQ(kind.code, 1);
   EXPECT_NE(kind.err.find("'sideways' is not a ray kind"), std::string::npos) << kind.err;
-  const ToolResult other = run_tool("rtpack-validate", {pkg, "--source", (s / "khronos/Suzanne/glTF/Suzanne.gltf").string()}, dir);
+  const ToolResult other =
+      run_tool("rtpack-validate", {pkg, "--source", (s / "khronos/Suzanne/glTF/Suzanne.gltf").string()}, dir);
   EXPECT_EQ(other.code, 1);
   EXPECT_NE(other.err.find("is not the scene of this package"), std::string::npos) << other.err;
   const ToolResult small = run_tool("rtpack-validate", {pkg, "--memory-budget", "1KiB"}, dir);
@@ -269,15 +275,15 @@ TEST(TraceOutOfCore, SameHitsAndTheSameJsonKeys) {
   const std::string pkg = (dir / "forest.rtp").string();
   convert_to((source_dir() / "samples/generated/forest-small.glb").string(), pkg, 60);
   const std::string rays = (dir / "rays.bin").string();
-  const ToolResult in = run_tool("rtpack-trace", {pkg, "--make-camera-rays", "200x150", "--rays", rays, "--hits",
-                                                  (dir / "in.bin").string(), "--json"}, dir);
+  const ToolResult in = run_tool(
+      "rtpack-trace", {pkg, "--make-camera-rays", "200x150", "--rays", rays, "--hits", (dir / "in.bin").string(), "--json"}, dir);
   ASSERT_EQ(in.code, 0) << in.err;
   const auto ji = nlohmann::json::parse(in.out);
   std::vector<std::string> traced;  // the budgets that ran (a refused one is checked, then skipped)
   for (const char* budget : {"100%", "10%", "5%"}) {
     SCOPED_TRACE(budget);
-    const ToolResult out = run_tool("rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "out.bin").string(),
-                                                     "--memory-budget", budget, "--json"}, dir);
+    const ToolResult out = run_tool(
+        "rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "out.bin").string(), "--memory-budget", budget, "--json"}, dir);
     if (out.code == 1) {  // below this package's minimum: said so, nothing written
       EXPECT_NE(out.out.find("below the minimum of"), std::string::npos) << out.out;
       EXPECT_FALSE(fs::exists(dir / "out.bin"));
@@ -307,8 +313,9 @@ TEST(TraceCulling, OffInCoreOnOutOfCoreSameHits) {
   const std::string pkg = (dir / "gallery.rtp").string();
   convert_to((source_dir() / "samples/generated/gallery.glb").string(), pkg, 8);
   const std::string rays = (dir / "rays.bin").string();
-  const ToolResult base = run_tool("rtpack-trace", {pkg, "--make-camera-rays", "160x120", "--rays", rays, "--hits",
-                                                    (dir / "base.bin").string(), "--json"}, dir);
+  const ToolResult base =
+      run_tool("rtpack-trace",
+               {pkg, "--make-camera-rays", "160x120", "--rays", rays, "--hits", (dir / "base.bin").string(), "--json"}, dir);
   ASSERT_EQ(base.code, 0) << base.err;
   const auto jb = nlohmann::json::parse(base.out);
   EXPECT_EQ(jb["mode"], "in core");
@@ -336,11 +343,13 @@ TEST(TraceCulling, OffInCoreOnOutOfCoreSameHits) {
     EXPECT_EQ(slurp_file(dir / "base.bin"), slurp_file(dir / "h.bin"));
     fs::remove(dir / "h.bin");
   }
-  const ToolResult both = run_tool("rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "x.bin").string(), "--cull", "--no-cull"}, dir);
+  const ToolResult both =
+      run_tool("rtpack-trace", {pkg, "--rays", rays, "--hits", (dir / "x.bin").string(), "--cull", "--no-cull"}, dir);
   EXPECT_EQ(both.code, 1);
   EXPECT_FALSE(fs::exists(dir / "x.bin"));
   fs::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

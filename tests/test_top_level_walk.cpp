@@ -12,7 +12,8 @@
 #include "trace/top_level_walk.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 uint64_t bits(double d) {
   uint64_t u;
@@ -73,13 +74,13 @@ TEST(TopLevelWalk, FourLanesEqualOneLaneOnDecidingCases) {
   for (int l = 0; l < 4; ++l)
     for (int k = 0; k < 3; ++k) node.lo[k][l] = lo[l], node.hi[k][l] = hi[l];
   const fmt::Ray rays[] = {
-      {{0.5f, 0.5f, 0.5f}, 0, {0, 0, 1}, trace_test::kInf},        // zero x and y: inside lane 0 only
-      {{2, 2, -5}, 0, {0, -0.0f, 1}, trace_test::kInf},             // on lane 1's flat faces
-      {{-5, 0.5f, 0.5f}, 5, {1, 0, 0}, trace_test::kInf},           // enters lane 0 exactly at tnear
-      {{5, 5, 5}, 0, {1, 1, 1}, trace_test::kInf},                  // every box behind the ray
-      {{1, 1, 1}, 0, {-1, -1, -1}, 0.0f},                           // tfar 0: only boxes at the origin
-      {{0, 0, 0}, 0, {1, 1, 1}, trace_test::kInf},                  // on lane 0's corner: entry ±0
-      {{-2, -2, -2}, 0, {1, 1e-30f, -1}, trace_test::kInf},         // a huge reciprocal
+      {{0.5f, 0.5f, 0.5f}, 0, {0, 0, 1}, trace_test::kInf},  // zero x and y: inside lane 0 only
+      {{2, 2, -5}, 0, {0, -0.0f, 1}, trace_test::kInf},      // on lane 1's flat faces
+      {{-5, 0.5f, 0.5f}, 5, {1, 0, 0}, trace_test::kInf},    // enters lane 0 exactly at tnear
+      {{5, 5, 5}, 0, {1, 1, 1}, trace_test::kInf},           // every box behind the ray
+      {{1, 1, 1}, 0, {-1, -1, -1}, 0.0f},                    // tfar 0: only boxes at the origin
+      {{0, 0, 0}, 0, {1, 1, 1}, trace_test::kInf},           // on lane 0's corner: entry ±0
+      {{-2, -2, -2}, 0, {1, 1e-30f, -1}, trace_test::kInf},  // a huge reciprocal
   };
   int k = 0;
   for (const fmt::Ray& r : rays) {
@@ -88,5 +89,6 @@ TEST(TopLevelWalk, FourLanesEqualOneLaneOnDecidingCases) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

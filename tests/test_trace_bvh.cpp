@@ -17,7 +17,8 @@
 #include "test_trace_paths.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::check_all_paths;
 using trace_test::PathResult;
@@ -35,9 +36,9 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays, const Pa
   for (size_t i = 0; i < rays.size(); ++i) {
     if (same_hit(r.hits[i], base.hits[i]) && r.occluded[i] == base.occluded[i]) continue;
     if (++differ <= 5)
-      ADD_FAILURE() << what << " W=" << W << " B=" << B << " ray " << i << ": t " << r.hits[i].t << " vs "
-                    << base.hits[i].t << ", instance " << r.hits[i].instance << " vs " << base.hits[i].instance
-                    << ", prim " << r.hits[i].prim << " vs " << base.hits[i].prim;
+      ADD_FAILURE() << what << " W=" << W << " B=" << B << " ray " << i << ": t " << r.hits[i].t << " vs " << base.hits[i].t
+                    << ", instance " << r.hits[i].instance << " vs " << base.hits[i].instance << ", prim " << r.hits[i].prim
+                    << " vs " << base.hits[i].prim;
   }
   EXPECT_EQ(differ, 0) << what << " W=" << W << " B=" << B << " differs from W=8 B=8";
 }
@@ -83,9 +84,9 @@ TEST_P(TraceBvh, EveryWidthIsaOrderAgreesWithBruteForce) {
   check_width<16, 8>(scene, rays, base, GetParam());
 }
 
-INSTANTIATE_TEST_SUITE_P(Samples, TraceBvh,
-                         ::testing::Values("khronos/Lantern/glTF/Lantern.gltf", "generated/gallery.glb"),
+INSTANTIATE_TEST_SUITE_P(Samples, TraceBvh, ::testing::Values("khronos/Lantern/glTF/Lantern.gltf", "generated/gallery.glb"),
                          [](const auto& info) { return info.index == 0 ? std::string("Lantern") : std::string("Gallery"); });
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -13,7 +13,8 @@
 #include "tool_run.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 
@@ -48,7 +49,8 @@ class TraceImage : public ::testing::Test {
   static void SetUpTestSuite() {
     dir = temp_dir("TraceImage");
     gallery = dir / "gallery.rtp";
-    const ToolResult r = run_tool("rtpack-convert", {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
+    const ToolResult r = run_tool("rtpack-convert",
+                                  {(source_dir() / "samples/generated/gallery.glb").string(), "-q", "-o", gallery.string()}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
   }
   static void TearDownTestSuite() { fs::remove_all(dir); }
@@ -58,7 +60,8 @@ fs::path TraceImage::dir, TraceImage::gallery;
 
 TEST_F(TraceImage, InstanceColoursMatchTheHitsRayByRay) {
   const fs::path png = dir / "inst.png", hits = dir / "inst.hits", rays = dir / "cam.rays", hits2 = dir / "cam.hits";
-  const ToolResult r = trace({gallery.string(), "--image", png.string(), "--size", "96x64", "--shade", "instance", "--hits", hits.string()});
+  const ToolResult r =
+      trace({gallery.string(), "--image", png.string(), "--size", "96x64", "--shade", "instance", "--hits", hits.string()});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("image: " + png.string() + ", 96x64, camera 0"), std::string::npos) << r.err;
   // The image's rays are the camera rays --make-camera-rays writes: the same hits, byte for byte.
@@ -74,7 +77,8 @@ TEST_F(TraceImage, InstanceColoursMatchTheHitsRayByRay) {
   for (size_t i = 0; i < h.size(); ++i) {
     const uint8_t* p = &img.rgb[i * 3];
     if (h[i].instance == fmt::Hit::kNone) {
-      ASSERT_TRUE(p[0] == image::kBackground[0] && p[1] == image::kBackground[1] && p[2] == image::kBackground[2]) << "pixel " << i;
+      ASSERT_TRUE(p[0] == image::kBackground[0] && p[1] == image::kBackground[1] && p[2] == image::kBackground[2])
+          << "pixel " << i;
       continue;
     }
     ++hit_pixels;
@@ -92,7 +96,8 @@ TEST_F(TraceImage, InstanceColoursMatchTheHitsRayByRay) {
 
 TEST_F(TraceImage, DepthFollowsTheHitDistance) {
   const fs::path png = dir / "depth.png", hits = dir / "depth.hits";
-  ASSERT_EQ(trace({gallery.string(), "--image", png.string(), "--size", "48x32", "--shade", "depth", "--hits", hits.string()}).code, 0);
+  ASSERT_EQ(
+      trace({gallery.string(), "--image", png.string(), "--size", "48x32", "--shade", "depth", "--hits", hits.string()}).code, 0);
   const auto h = read_records<fmt::Hit>(hits);
   const Png img = load_png(png);
   ASSERT_EQ(h.size(), 48u * 32u);  // one hit record per pixel
@@ -113,7 +118,8 @@ TEST_F(TraceImage, DepthFollowsTheHitDistance) {
 TEST_F(TraceImage, CamerasAndTheAutomaticOne) {
   const fs::path h0 = dir / "c0.hits", h1 = dir / "c1.hits";
   ASSERT_EQ(trace({gallery.string(), "--image", (dir / "c0.png").string(), "--size", "32x24", "--hits", h0.string()}).code, 0);
-  const ToolResult one = trace({gallery.string(), "--image", (dir / "c1.png").string(), "--size", "32x24", "--camera", "1", "--hits", h1.string()});
+  const ToolResult one =
+      trace({gallery.string(), "--image", (dir / "c1.png").string(), "--size", "32x24", "--camera", "1", "--hits", h1.string()});
   ASSERT_EQ(one.code, 0) << one.err;
   EXPECT_NE(one.err.find("camera 1"), std::string::npos) << one.err;
   EXPECT_NE(slurp_file(h0), slurp_file(h1));
@@ -123,8 +129,12 @@ TEST_F(TraceImage, CamerasAndTheAutomaticOne) {
   EXPECT_FALSE(fs::exists(dir / "c2.png"));
   // Suzanne has no camera: an automatic one frames the bounds, and the model fills part of the image.
   const fs::path suz = dir / "suzanne.rtp";
-  ASSERT_EQ(run_tool("rtpack-convert", {(source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string(), "-q", "-o", suz.string()}, dir).code, 0);
-  const ToolResult a = trace({suz.string(), "--image", (dir / "s.png").string(), "--size", "40x40", "--hits", (dir / "s.hits").string()});
+  ASSERT_EQ(run_tool("rtpack-convert",
+                     {(source_dir() / "samples/khronos/Suzanne/glTF/Suzanne.gltf").string(), "-q", "-o", suz.string()}, dir)
+                .code,
+            0);
+  const ToolResult a =
+      trace({suz.string(), "--image", (dir / "s.png").string(), "--size", "40x40", "--hits", (dir / "s.hits").string()});
   ASSERT_EQ(a.code, 0) << a.err;
   EXPECT_NE(a.err.find("automatic camera"), std::string::npos) << a.err;
   size_t hit = 0;
@@ -147,8 +157,8 @@ TEST_F(TraceImage, PacketsInHilbertTilesGiveTheSingleRayImage) {
   for (const char* size : {"", "4", "8", "16"}) {
     const std::string tag = std::string("p") + (*size ? size : "default");
     const fs::path png = dir / (tag + ".png"), hits = dir / (tag + ".hits");
-    std::vector<std::string> args = {gallery.string(), "--image", png.string(), "--size", "70x46", "--camera", "1",
-                                     "--hits", hits.string(), "--json"};
+    std::vector<std::string> args = {gallery.string(), "--image", png.string(), "--size",      "70x46",
+                                     "--camera",       "1",       "--hits",     hits.string(), "--json"};
     if (*size) args.insert(args.end(), {"--packet", size});
     const ToolResult r = trace(args);
     ASSERT_EQ(r.code, 0) << tag << ": " << r.err;
@@ -172,8 +182,8 @@ TEST_F(TraceImage, PacketsInHilbertTilesGiveTheSingleRayImage) {
     EXPECT_NE(text.err.find("SIMD utilization"), std::string::npos) << text.err;
   }
   // The scalar reference traces single rays and still gives the same picture.
-  const ToolResult scalar = trace({gallery.string(), "--image", (dir / "ps.png").string(), "--size", "70x46", "--camera",
-                                   "1", "--isa", "scalar", "--hits", (dir / "ps.hits").string()});
+  const ToolResult scalar = trace({gallery.string(), "--image", (dir / "ps.png").string(), "--size", "70x46", "--camera", "1",
+                                   "--isa", "scalar", "--hits", (dir / "ps.hits").string()});
   ASSERT_EQ(scalar.code, 0) << scalar.err;
   EXPECT_EQ(slurp_file(dir / "ps.hits"), slurp_file(hits0));
   EXPECT_EQ(scalar.err.find("packets of"), std::string::npos) << scalar.err;
@@ -233,11 +243,13 @@ TEST_F(TraceImage, SizeParsing) {
   EXPECT_EQ(j["image"]["height"].get<int>(), 5);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 // glTF 2.0 §5.13: ymag MUST NOT be zero and SHOULD NOT be negative. The importer accepts a negative one, so
 // the image does too (by its size); zero is refused naming the camera.
@@ -254,7 +266,8 @@ TEST(TraceImageCamera, NegativeYmagIsItsSizeAndZeroIsRefused) {
     const fs::path rtp = dir / (tag + ".rtp"), h = dir / (tag + ".hits");
     const ToolResult c = run_tool("rtpack-convert", {b.write_gltf(dir / (tag + ".gltf")), "-q", "-o", rtp.string()}, dir);
     ASSERT_EQ(c.code, 0) << c.err;
-    const ToolResult r = run_tool("rtpack-trace", {rtp.string(), "--image", (dir / (tag + ".png")).string(), "--size", "16x16", "--hits", h.string()}, dir);
+    const ToolResult r = run_tool(
+        "rtpack-trace", {rtp.string(), "--image", (dir / (tag + ".png")).string(), "--size", "16x16", "--hits", h.string()}, dir);
     if (ymag == 0) {
       EXPECT_EQ(r.code, 3);
       EXPECT_NE(r.err.find("/cameras/0/ymag"), std::string::npos) << r.err;
@@ -273,5 +286,6 @@ TEST(TraceImageCamera, NegativeYmagIsItsSizeAndZeroIsRefused) {
   fs::remove_all(dir);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -13,7 +13,8 @@
 #include "trace/kernels/kernels.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::kInf;
 using trace_test::Rng;
@@ -50,8 +51,8 @@ fmt::LeafBlock<B> random_block(Rng& rng) {
     Rng lr(uint64_t(src) * 7919 + rng.next() % 3);  // kind 4 copies come out equal below
     for (int a = 0; a < 3; ++a) {
       float v[3] = {rng.range(-1, 1), rng.range(-1, 1), rng.range(-1, 1)};
-      if (kind == 1) v[0] = base[a];                     // fan: every lane shares vertex 0
-      if (kind == 2 && (lane % 3) == 0) v[2] = v[1];     // degenerate: repeated vertex
+      if (kind == 1) v[0] = base[a];                                       // fan: every lane shares vertex 0
+      if (kind == 2 && (lane % 3) == 0) v[2] = v[1];                       // degenerate: repeated vertex
       if (kind == 2 && (lane % 3) == 1) v[2] = 0.5f * v[0] + 0.5f * v[1];  // collinear (about)
       if (kind == 3 && rng.below(8) == 0) v[rng.below(3)] = rng.below(2) ? 1e30f : NAN;
       blk.v0[a][lane] = v[0];
@@ -86,8 +87,8 @@ fmt::Ray ray_at_block(Rng& rng, const fmt::LeafBlock<B>& blk) {
     default: w[0] = -1; break;  // random direction
   }
   for (int a = 0; a < 3; ++a) {
-    const float target = w[0] < 0 ? r.org[a] + rng.range(-1, 1)
-                                  : w[0] * blk.v0[a][lane] + w[1] * blk.v1[a][lane] + w[2] * blk.v2[a][lane];
+    const float target =
+        w[0] < 0 ? r.org[a] + rng.range(-1, 1) : w[0] * blk.v0[a][lane] + w[1] * blk.v1[a][lane] + w[2] * blk.v2[a][lane];
     r.dir[a] = special_component(rng, (target - r.org[a]) * rng.range(0.25f, 4.0f));
   }
   r.tnear = rng.below(3) == 0 ? rng.range(0, 0.5f) : 0.0f;
@@ -129,7 +130,8 @@ void check_blocks(uint64_t seed) {
 TEST(TraceKernels, EveryCompiledSimdIsaRunsOnThisCpu) {
   std::string missing;
   for (Isa isa : {Isa::kAvx2, Isa::kAvx512})
-    if (static_cast<int>(isa) > static_cast<int>(detect_isa())) missing += std::string(missing.empty() ? "" : ", ") + isa_name(isa);
+    if (static_cast<int>(isa) > static_cast<int>(detect_isa()))
+      missing += std::string(missing.empty() ? "" : ", ") + isa_name(isa);
   const char* required = std::getenv("RTP_REQUIRE_ISA");
   if (required && *required) {
     const std::string want(required);
@@ -177,7 +179,8 @@ void check_nodes(uint64_t seed) {
     }
     if (rng.below(2) && std::isfinite(node.lo[0][lane]))  // aimed at a point of some box
       for (int a = 0; a < 3; ++a)
-        ray.dir[a] = special_component(rng, node.lo[a][lane] + rng.range(0, 1) * (node.hi[a][lane] - node.lo[a][lane]) - ray.org[a]);
+        ray.dir[a] =
+            special_component(rng, node.lo[a][lane] + rng.range(0, 1) * (node.hi[a][lane] - node.lo[a][lane]) - ray.org[a]);
     if (rng.below(2) && std::isfinite(node.lo[0][lane])) {  // origin on a face of some box
       const int a = int(rng.below(3));
       ray.org[a] = rng.below(2) ? node.lo[a][lane] : node.hi[a][lane];
@@ -429,14 +432,14 @@ TEST(TraceKernels, TriangleTIsAccurateOnGrazingNeedles) {
     n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2], n[2] = e1[0] * e2[1] - e1[1] * e2[0];
     for (int a = 0; a < 3; ++a) num += n[a] * (double(p[0][a]) - r.org[a]), den += n[a] * r.dir[a];
     const double t_ref = num / den;
-    const double cosine = std::fabs(den) / (std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) *
-                                            std::sqrt(double(r.dir[0]) * r.dir[0] + double(r.dir[1]) * r.dir[1] +
-                                                      double(r.dir[2]) * r.dir[2]));
+    const double cosine =
+        std::fabs(den) / (std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) *
+                          std::sqrt(double(r.dir[0]) * r.dir[0] + double(r.dir[1]) * r.dir[1] + double(r.dir[2]) * r.dir[2]));
     if (cosine < 0.05) continue;  // closer to the plane t is ill-conditioned in any float test
     for (Isa isa : all_isas()) {
       BlockHits<4> h;
       intersect_block<4>(isa, blk, r, &h);
-      if (!h.mask) continue;  // a ray grazing right along the needle may pass beside it
+      if (!h.mask) continue;        // a ray grazing right along the needle may pass beside it
       hits += isa == Isa::kScalar;  // counted once per ray: the threshold holds on any CPU
       worst = std::max(worst, std::fabs(h.t[0] - t_ref) / std::fabs(t_ref));
     }
@@ -445,5 +448,6 @@ TEST(TraceKernels, TriangleTIsAccurateOnGrazingNeedles) {
   EXPECT_LT(worst, 1e-5);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

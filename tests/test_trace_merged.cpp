@@ -19,7 +19,8 @@
 #include "test_trace_paths.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::check_all_paths;
 using trace_test::PathResult;
@@ -67,9 +68,9 @@ std::set<uint32_t> expect_same_answers(const Scene& scene, const std::string& wh
     if (a.hits[i].instance != fmt::Hit::kNone) named.insert(a.hits[i].instance);
     if (same_hit(a.hits[i], b.hits[i]) && a.occluded[i] == b.occluded[i]) continue;
     if (++bad <= 5)
-      ADD_FAILURE() << what << " ray " << i << ": merged t " << a.hits[i].t << " instance " << a.hits[i].instance
-                    << " prim " << a.hits[i].prim << ", unmerged t " << b.hits[i].t << " instance " << b.hits[i].instance
-                    << " prim " << b.hits[i].prim;
+      ADD_FAILURE() << what << " ray " << i << ": merged t " << a.hits[i].t << " instance " << a.hits[i].instance << " prim "
+                    << a.hits[i].prim << ", unmerged t " << b.hits[i].t << " instance " << b.hits[i].instance << " prim "
+                    << b.hits[i].prim;
   }
   EXPECT_EQ(bad, 0) << what;
   // The N closest (Gribble's node culling), every ISA.
@@ -202,9 +203,9 @@ TEST(FlattenedInstances, LanternAnswersAsItsThreeParts) {
     const fmt::Hit &x = a.hits[i], &y = b.hits[i];
     const bool hx = x.instance != fmt::Hit::kNone, hy = y.instance != fmt::Hit::kNone;
     if (hx) named.insert(x.instance);
-    const double dt = hx && hy ? std::fabs(double(x.t) - y.t) * std::sqrt(double(rays[i].dir[0]) * rays[i].dir[0] +
-                                                                    double(rays[i].dir[1]) * rays[i].dir[1] +
-                                                                    double(rays[i].dir[2]) * rays[i].dir[2])
+    const double dt = hx && hy ? std::fabs(double(x.t) - y.t) *
+                                     std::sqrt(double(rays[i].dir[0]) * rays[i].dir[0] + double(rays[i].dir[1]) * rays[i].dir[1] +
+                                               double(rays[i].dir[2]) * rays[i].dir[2])
                                : 0;
     bool ok;
     if (!hx && !hy) {
@@ -219,9 +220,9 @@ TEST(FlattenedInstances, LanternAnswersAsItsThreeParts) {
       ties += ok;
     }
     if (!ok && ++bad <= 5)
-      ADD_FAILURE() << "ray " << i << ": flattened t " << x.t << " instance " << x.instance << " prim " << x.prim
-                    << " (u " << x.u << ", v " << x.v << "), two-level t " << y.t << " instance " << y.instance
-                    << " prim " << y.prim << " (u " << y.u << ", v " << y.v << ")";
+      ADD_FAILURE() << "ray " << i << ": flattened t " << x.t << " instance " << x.instance << " prim " << x.prim << " (u " << x.u
+                    << ", v " << x.v << "), two-level t " << y.t << " instance " << y.instance << " prim " << y.prim << " (u "
+                    << y.u << ", v " << y.v << ")";
     // Any-hit: the same answer, or a tie at an edge (the closest-hit answers of the ray show it).
     if (a.occluded[i] != b.occluded[i] && !(hx && near_edge(x)) && !(hy && near_edge(y)) && ++bad <= 5)
       ADD_FAILURE() << "ray " << i << ": occluded " << int(a.occluded[i]) << " vs " << int(b.occluded[i]);
@@ -257,5 +258,6 @@ TEST(FlattenedInstances, FarAndSmallPartsStayTwoLevel) {
   EXPECT_FALSE((InCoreScene<8, 8>::build(shared).merged()));
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -21,7 +21,8 @@
 #include "test_trace_util.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using trace_test::simd_isas;
 
@@ -77,18 +78,18 @@ void expect_packets_equal_single(const SceneView<W, B>& view, const std::vector<
     const Answers single = run<W, B>(view, rays, {isa, TraversalOrder::kOctantStack, 0});
     EXPECT_EQ(single.closest.packets, 0u);
     for (uint32_t p : {4u, 8u, 16u}) {
-      const std::string path = what + " W=" + std::to_string(W) + " B=" + std::to_string(B) + " " + isa_name(isa) +
-                               " packets of " + std::to_string(p);
+      const std::string path =
+          what + " W=" + std::to_string(W) + " B=" + std::to_string(B) + " " + isa_name(isa) + " packets of " + std::to_string(p);
       const Answers got = run<W, B>(view, rays, {isa, TraversalOrder::kOctantStack, p});
       int bad = 0;
       for (size_t i = 0; i < rays.size() && bad < 5; ++i) {
         if (!same(got.hits[i], single.hits[i]))
-          ++bad, ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << single.hits[i].t
-                               << ", instance " << got.hits[i].instance << " vs " << single.hits[i].instance << ", prim "
-                               << got.hits[i].prim << " vs " << single.hits[i].prim;
+          ++bad, ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << single.hits[i].t << ", instance "
+                               << got.hits[i].instance << " vs " << single.hits[i].instance << ", prim " << got.hits[i].prim
+                               << " vs " << single.hits[i].prim;
         if (got.occluded[i] != single.occluded[i])
-          ++bad, ADD_FAILURE() << path << " ray " << i << ": occluded " << int(got.occluded[i]) << " vs "
-                               << int(single.occluded[i]);
+          ++bad,
+              ADD_FAILURE() << path << " ray " << i << ": occluded " << int(got.occluded[i]) << " vs " << int(single.occluded[i]);
       }
       EXPECT_EQ(got.closest.rays, rays.size()) << path;
       EXPECT_EQ(got.closest.invalid_rays, single.closest.invalid_rays) << path;
@@ -206,11 +207,11 @@ TEST(TracePackets, TopLevelOfOneLeafEqualsSingleRays) {
 // AxisMoves) bit for bit, as one instance under a one-leaf top level and as several under a tree.
 TEST(TracePackets, SignedPermutationInstancesMovePacketsByTheirAxes) {
   if (simd_isas().empty()) GTEST_SKIP() << "no AVX2 on this CPU: packets are SIMD only";
-  const double turns[][9] = {{-1, 0, 0, 0, 1, 0, 0, 0, -1},   // half turn about y
-                             {0, -1, 0, 1, 0, 0, 0, 0, 1},    // quarter turn about z
-                             {-1, 0, 0, 0, 1, 0, 0, 0, 1},    // mirror
-                             {0, 0, 1, 1, 0, 0, 0, 1, 0},     // axis cycle
-                             {1, 0, 0, 0, 1, 0, 0, 0, 1}};    // translation only
+  const double turns[][9] = {{-1, 0, 0, 0, 1, 0, 0, 0, -1},  // half turn about y
+                             {0, -1, 0, 1, 0, 0, 0, 0, 1},   // quarter turn about z
+                             {-1, 0, 0, 0, 1, 0, 0, 0, 1},   // mirror
+                             {0, 0, 1, 1, 0, 0, 0, 1, 0},    // axis cycle
+                             {1, 0, 0, 0, 1, 0, 0, 0, 1}};   // translation only
   for (const bool one : {true, false}) {
     Scene s;
     s.meshes.push_back(make_icosphere(3));
@@ -250,14 +251,14 @@ TEST(TracePackets, SignedPermutationInstancesMovePacketsByTheirAxes) {
     EXPECT_GT(on_axes, rays.size() / 8) << "closest hits on instances moved by their axes";
     for (Isa isa : simd_isas())
       for (uint32_t p : {4u, 8u, 16u}) {
-        const std::string path = std::string(one ? "one instance" : "ten instances") + " " + isa_name(isa) +
-                                 " packets of " + std::to_string(p);
+        const std::string path =
+            std::string(one ? "one instance" : "ten instances") + " " + isa_name(isa) + " packets of " + std::to_string(p);
         const Answers got = run<8, 8>(view, rays, {isa, TraversalOrder::kOctantStack, p});
         int bad = 0;
         for (size_t i = 0; i < rays.size(); ++i)
           if ((!same(got.hits[i], reference.hits[i]) || got.occluded[i] != reference.occluded[i]) && ++bad <= 5)
-            ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << reference.hits[i].t
-                          << ", instance " << got.hits[i].instance << " vs " << reference.hits[i].instance;
+            ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << reference.hits[i].t << ", instance "
+                          << got.hits[i].instance << " vs " << reference.hits[i].instance;
         EXPECT_EQ(bad, 0) << path;
         EXPECT_GE(double(got.closest.packet_rays), 0.9 * double(rays.size())) << path;
       }
@@ -343,7 +344,7 @@ TEST(TracePackets, SplitOctantsAndDegenerateRaysGoAlone) {
       const float sx = tile < 32 ? (i % 2 ? 1.0f : -1.0f) : (i == 5 ? -1.0f : 1.0f);
       r.dir[0] = sx * 0.05f * float(1 + i % 3), r.dir[1] = 0.04f, r.dir[2] = -1.0f;
       r.tfar = INFINITY;
-      if (tile % 5 == 1 && i == 3) r.dir[0] = 0.0f;                  // infinite reciprocal: alone
+      if (tile % 5 == 1 && i == 3) r.dir[0] = 0.0f;                   // infinite reciprocal: alone
       if (tile % 5 == 2 && i == 0) r.org[0] = NAN, ++expect_invalid;  // the first lane is invalid
       if (tile % 5 == 3 && i == 7) r.tnear = 5.0f, r.tfar = 1.0f, ++expect_invalid;
       if (tile % 5 == 4 && i == 9) r.dir[0] = r.dir[1] = r.dir[2] = 0.0f;  // zero direction: a miss
@@ -403,8 +404,8 @@ TEST(TracePackets, OrthographicAxisAlignedTilesGoAsPacketsAndEqualSingleRays) {
       r.org[2] = 4.0f;
       r.dir[0] = 0.0f, r.dir[1] = 0.0f, r.dir[2] = -1.0f;
       if (tile % 2) r.dir[0] = -0.0f, r.dir[2] = -2.0f;  // the other x octant, a longer direction
-      if (mixed && i == 6) r.dir[0] = 1e-3f;              // not axis-aligned: alone
-      if (signed_zero && i == 9) r.dir[1] = -0.0f;        // another octant: alone
+      if (mixed && i == 6) r.dir[0] = 1e-3f;             // not axis-aligned: alone
+      if (signed_zero && i == 9) r.dir[1] = -0.0f;       // another octant: alone
       r.tfar = INFINITY;
       rays.push_back(r);
     }
@@ -454,5 +455,6 @@ TEST(TracePackets, OtherPacketSizesAreRefused) {
   EXPECT_EQ(h.t, 4.0f);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

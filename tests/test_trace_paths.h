@@ -72,13 +72,12 @@ PathResult check_all_paths(const SceneView<W, B>& view, const std::vector<fmt::R
       if (!same_hit(got.hits[i], ref.hits[i])) {
         ++bad;
         ADD_FAILURE() << path << " ray " << i << ": t " << got.hits[i].t << " vs " << ref.hits[i].t << ", instance "
-                      << got.hits[i].instance << " vs " << ref.hits[i].instance << ", prim " << got.hits[i].prim
-                      << " vs " << ref.hits[i].prim;
+                      << got.hits[i].instance << " vs " << ref.hits[i].instance << ", prim " << got.hits[i].prim << " vs "
+                      << ref.hits[i].prim;
       }
       if (got.occluded[i] != ref.occluded[i]) {
         ++bad;
-        ADD_FAILURE() << path << " ray " << i << ": occluded " << int(got.occluded[i]) << " vs "
-                      << int(ref.occluded[i]);
+        ADD_FAILURE() << path << " ray " << i << ": occluded " << int(got.occluded[i]) << " vs " << int(ref.occluded[i]);
       }
     }
   }

@@ -11,7 +11,8 @@
 #include "test_trace_util.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace trace_test;
 
@@ -46,8 +47,8 @@ std::vector<Tri> random_soup(Rng& rng, int n) {
     const float size = rng.range(0.1f, 3.0f);
     for (auto& v : t.v)
       for (int a = 0; a < 3; ++a) v[a] = c[a] + size * rng.range(-1, 1);
-    if (i % 17 == 0) t.v[2] = t.v[1];                                        // zero area
-    if (i % 23 == 0) t.v[2] = {t.v[0][0] + 1e-4f, t.v[0][1], t.v[0][2]};      // needle
+    if (i % 17 == 0) t.v[2] = t.v[1];                                     // zero area
+    if (i % 23 == 0) t.v[2] = {t.v[0][0] + 1e-4f, t.v[0][1], t.v[0][2]};  // needle
     out.push_back(t);
   }
   for (int k = 0; k < 12; ++k) out.push_back(out[5]);  // identical overlapping triangles
@@ -57,8 +58,8 @@ std::vector<Tri> random_soup(Rng& rng, int n) {
 template <int W, int B>
 TestScene<W, B> mixed_scene() {
   Rng rng(42);
-  std::vector<std::vector<Tri>> meshes = {random_soup(rng, 300), soup(make_icosphere(2), 3.0, {0, 0, 0}),
-                                          soup(make_cube(2.0), 1.0, {0, 0, 0}), {}};
+  std::vector<std::vector<Tri>> meshes = {
+      random_soup(rng, 300), soup(make_icosphere(2), 3.0, {0, 0, 0}), soup(make_cube(2.0), 1.0, {0, 0, 0}), {}};
   std::vector<TestInstance> inst = {
       {0, identity()},
       {1, translation(5, 0, 0)},
@@ -66,7 +67,7 @@ TestScene<W, B> mixed_scene() {
       {1, rotate_scale({0, 1, 0}, 0.3, -1.0, {0, -6, 0})},  // mirrored
       {2, rotate_scale({1, 1, 0}, 1.1, 0.8, {0, 0, 8})},
       {2, translation(3, 3, -7)},
-      {3, identity()},  // an instance of an empty mesh
+      {3, identity()},                 // an instance of an empty mesh
       {1, translation(5, 0.5, 0.25)},  // overlaps instance 1
   };
   return build_scene<W, B>(std::move(meshes), std::move(inst));
@@ -127,8 +128,7 @@ TYPED_TEST(TraceScene, EveryPathEqualsScalarAndBruteForce) {
     ties += c == 1;
     if (c == 2 && ++failures <= 5)
       ADD_FAILURE() << "ray " << i << ": t " << ref.hits[i].t << " instance " << ref.hits[i].instance << " prim "
-                    << ref.hits[i].prim << " vs brute force t " << bf.t << " instance " << bf.instance << " prim "
-                    << bf.prim;
+                    << ref.hits[i].prim << " vs brute force t " << bf.t << " instance " << bf.instance << " prim " << bf.prim;
   }
   EXPECT_EQ(failures, 0);
   EXPECT_GT(hits, 1500);
@@ -155,13 +155,13 @@ TYPED_TEST(TraceScene, AxisMovesEqualTheGeneralTransformBitForBit) {
       {1, affine({-1, 0, 0, 0, 1, 0, 0, 0, 1}, t2)},        // mirror
       {0, affine({0, 0, 1, 1, 0, 0, 0, 1, 0}, {7, 7, 7})},  // axis cycle
       {1, translation(-3, -3, 5)},
-      {1, identity()},                                        // moves no ray
-      {0, rotate_scale({1, 2, 3}, 0.7, 1.5, {-5, 3, 1})},    // general
+      {1, identity()},                                     // moves no ray
+      {0, rotate_scale({1, 2, 3}, 0.7, 1.5, {-5, 3, 1})},  // general
       {1, affine({0, 0, -1, 0, -1, 0, -1, 0, 0}, {1e5f, -2e5f, 3e5f})},
   };
   const TestScene<W, B> scene = build_scene<W, B>(std::move(meshes), std::move(inst));
   const std::vector<AxisMove> moves = axis_moves(scene.instances.data(), scene.instances.size());
-  const uint8_t kinds[] = {AxisMove::kAxes, AxisMove::kAxes, AxisMove::kAxes, AxisMove::kAxes,
+  const uint8_t kinds[] = {AxisMove::kAxes, AxisMove::kAxes, AxisMove::kAxes,    AxisMove::kAxes,
                            AxisMove::kAxes, AxisMove::kNone, AxisMove::kGeneral, AxisMove::kAxes};
   ASSERT_EQ(moves.size(), std::size(kinds));
   for (size_t i = 0; i < moves.size(); ++i) EXPECT_EQ(moves[i].kind, kinds[i]) << "instance " << i;
@@ -193,8 +193,8 @@ TYPED_TEST(TraceScene, AxisMovesEqualTheGeneralTransformBitForBit) {
     hits += id != fmt::Hit::kNone && kinds[id] == AxisMove::kAxes;
     if ((!same_hit(got.hits[i], general.hits[i]) || got.occluded[i] != general.occluded[i]) && ++bad <= 5)
       ADD_FAILURE() << "ray " << i << ": t " << got.hits[i].t << " vs " << general.hits[i].t << ", instance "
-                    << got.hits[i].instance << " vs " << general.hits[i].instance << ", prim " << got.hits[i].prim
-                    << " vs " << general.hits[i].prim;
+                    << got.hits[i].instance << " vs " << general.hits[i].instance << ", prim " << got.hits[i].prim << " vs "
+                    << general.hits[i].prim;
   }
   EXPECT_EQ(bad, 0);
   EXPECT_GT(hits, 1500) << "rays whose closest hit is on an instance moved by its axes";
@@ -210,8 +210,8 @@ TYPED_TEST(TraceScene, HitsExactlyAtTnearAndTfar) {
   for (float dz : {1.0f, 2.0f, 0.5f}) {
     const float t = 5.0f / dz;  // the first quad, at world z = 5
     const fmt::Ray base{{4.25f, -2.5f, 0}, 0, {0, 0, dz}, INFINITY};
-    for (auto [tn, tf] : {std::pair{t, t}, {0.0f, t}, {t, INFINITY}, {std::nextafter(t, INFINITY), INFINITY},
-                          {0.0f, std::nextafter(t, 0.0f)}}) {
+    for (auto [tn, tf] :
+         {std::pair{t, t}, {0.0f, t}, {t, INFINITY}, {std::nextafter(t, INFINITY), INFINITY}, {0.0f, std::nextafter(t, 0.0f)}}) {
       fmt::Ray r = base;
       r.tnear = tn, r.tfar = tf;
       rays.push_back(r);
@@ -241,8 +241,8 @@ TYPED_TEST(TraceScene, InvalidRaysAreCountedMisses) {
       (c < 3 ? r.org[c] : r.dir[c - 4]) = x;
       rays.push_back(r);
     }
-  for (auto [tn, tf] : {std::pair{2.0f, 1.0f}, {INFINITY, INFINITY}, {0.0f, -INFINITY}, {NAN, NAN}, {NAN, 1.0f},
-                         {0.0f, NAN}, {-INFINITY, NAN}}) {
+  for (auto [tn, tf] :
+       {std::pair{2.0f, 1.0f}, {INFINITY, INFINITY}, {0.0f, -INFINITY}, {NAN, NAN}, {NAN, 1.0f}, {0.0f, NAN}, {-INFINITY, NAN}}) {
     fmt::Ray r = good;
     r.tnear = tn, r.tfar = tf;
     rays.push_back(r);
@@ -336,5 +336,6 @@ TYPED_TEST(TraceScene, DeepTreesWithinTheLimitAreExactBeyondItSafe) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -49,9 +49,7 @@ struct Tri {
 // Row-major 3x4 transforms.
 using Affine = std::array<float, 12>;
 inline Affine identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}; }
-inline Affine translation(double x, double y, double z) {
-  return {1, 0, 0, float(x), 0, 1, 0, float(y), 0, 0, 1, float(z)};
-}
+inline Affine translation(double x, double y, double z) { return {1, 0, 0, float(x), 0, 1, 0, float(y), 0, 0, 1, float(z)}; }
 // Inverse of a 3x4 affine in double, rounded to float (SPEC §2.4 stores its 3x3 part).
 inline Affine invert(const Affine& m) {
   const double a = m[0], b = m[1], c = m[2], d = m[4], e = m[5], f = m[6], g = m[8], h = m[9], i = m[10];
@@ -72,7 +70,8 @@ inline Affine invert(const Affine& m) {
 }
 inline std::array<double, 3> apply(const Affine& m, const std::array<double, 3>& p) {
   std::array<double, 3> o{};
-  for (int r = 0; r < 3; ++r) o[r] = double(m[4 * r]) * p[0] + double(m[4 * r + 1]) * p[1] + double(m[4 * r + 2]) * p[2] + double(m[4 * r + 3]);
+  for (int r = 0; r < 3; ++r)
+    o[r] = double(m[4 * r]) * p[0] + double(m[4 * r + 1]) * p[1] + double(m[4 * r + 2]) * p[2] + double(m[4 * r + 3]);
   return o;
 }
 
@@ -167,15 +166,13 @@ struct TestScene {
   std::vector<fmt::InstanceRecord> instances;
   uint32_t top_root = fmt::ChildRef::kEmpty;
 
-  SceneView<W, B> view() const {
-    return {top_nodes.data(), top_root, top_instances.data(), instances.data(), mesh_views.data()};
-  }
+  SceneView<W, B> view() const { return {top_nodes.data(), top_root, top_instances.data(), instances.data(), mesh_views.data()}; }
 };
 
 // leaf_blocks: blocks per mesh leaf (1..16); top_leaf: instances per top leaf (1..16).
 template <int W, int B>
-TestScene<W, B> build_scene(std::vector<std::vector<Tri>> meshes, std::vector<TestInstance> placements,
-                            uint32_t leaf_blocks = 2, uint32_t top_leaf = 2) {
+TestScene<W, B> build_scene(std::vector<std::vector<Tri>> meshes, std::vector<TestInstance> placements, uint32_t leaf_blocks = 2,
+                            uint32_t top_leaf = 2) {
   TestScene<W, B> s;
   s.meshes = std::move(meshes);
   s.placements = std::move(placements);
@@ -317,8 +314,7 @@ RefHit brute_force(const TestScene<W, B>& s, const fmt::Ray& r) {
 
 // Compares one hit with the reference (TESTING.md): 0 agree, 1 classified edge tie, 2 failure.
 template <int W, int B>
-int classify(const TestScene<W, B>& s, const fmt::Ray& r, const fmt::Hit& h, const RefHit& ref,
-             double edge_eps = 1e-5) {
+int classify(const TestScene<W, B>& s, const fmt::Ray& r, const fmt::Hit& h, const RefHit& ref, double edge_eps = 1e-5) {
   const bool hit = h.instance != fmt::Hit::kNone, ref_hit = ref.instance != fmt::Hit::kNone;
   if (!hit && !ref_hit) return 0;
   auto ours_near_edge = [&]() {  // our triangle, in double: inside up to edge_eps and t close

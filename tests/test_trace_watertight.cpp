@@ -14,7 +14,8 @@
 #include "test_trace_util.h"
 
 namespace rtp {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using namespace trace_test;
 
@@ -53,8 +54,8 @@ void check_no_leaks(const Mesh& m, double scale, std::array<double, 3> centre, b
   }
   std::vector<fmt::Ray> rays;
   const double r = 0.3 * scale;
-  const std::array<double, 3> inside[] = {centre, {centre[0] + r, centre[1], centre[2]},
-                                          {centre[0] - 0.5 * r, centre[1] + r, centre[2] - 0.25 * r}};
+  const std::array<double, 3> inside[] = {
+      centre, {centre[0] + r, centre[1], centre[2]}, {centre[0] - 0.5 * r, centre[1] + r, centre[2] - 0.25 * r}};
   for (const auto& t : targets) {
     const std::array<float, 3> tf = to_float(t);
     for (const auto& o : inside) {
@@ -71,14 +72,14 @@ void check_no_leaks(const Mesh& m, double scale, std::array<double, 3> centre, b
   int leaks = 0, far_off = 0, failures = 0;
   for (size_t i = 0; i < rays.size(); ++i) {
     if (res.hits[i].instance == fmt::Hit::kNone) {
-      if (++leaks <= 5)
-        ADD_FAILURE() << what << ": leak, ray " << i << " (" << (i % 4 == 3 ? "outside" : "inside") << ")";
+      if (++leaks <= 5) ADD_FAILURE() << what << ": leak, ray " << i << " (" << (i % 4 == 3 ? "outside" : "inside") << ")";
       continue;
     }
     // t = 1 at the target, up to the rounding of the target to the float grid (far from the origin).
     const double len = std::sqrt(double(rays[i].dir[0]) * rays[i].dir[0] + double(rays[i].dir[1]) * rays[i].dir[1] +
                                  double(rays[i].dir[2]) * rays[i].dir[2]);
-    const double grid = std::ldexp(1.0, std::ilogb(std::max({std::fabs(centre[0]), std::fabs(centre[1]), std::fabs(centre[2]), 1.0})) - 23);
+    const double grid =
+        std::ldexp(1.0, std::ilogb(std::max({std::fabs(centre[0]), std::fabs(centre[1]), std::fabs(centre[2]), 1.0})) - 23);
     if (std::fabs(res.hits[i].t - 1.0) > 1e-4 + 4 * grid / len) ++far_off;
     // Under ASan+UBSan (scripts/test's second run) every 8th ray is also checked against the double brute
     // force: it reads no library memory, and all of it runs in the Release run.
@@ -86,9 +87,8 @@ void check_no_leaks(const Mesh& m, double scale, std::array<double, 3> centre, b
     const RefHit bf = brute_force(scene, rays[i]);
     const int c = classify(scene, rays[i], res.hits[i], bf);
     if (c == 2 && ++failures <= 5)
-      ADD_FAILURE() << what << ": ray " << i << " t " << res.hits[i].t << " prim " << res.hits[i].prim << " u "
-                    << res.hits[i].u << " v " << res.hits[i].v << " vs brute force t " << bf.t << " prim " << bf.prim
-                    << " edge " << bf.edge;
+      ADD_FAILURE() << what << ": ray " << i << " t " << res.hits[i].t << " prim " << res.hits[i].prim << " u " << res.hits[i].u
+                    << " v " << res.hits[i].v << " vs brute force t " << bf.t << " prim " << bf.prim << " edge " << bf.edge;
   }
   EXPECT_EQ(leaks, 0) << what << " (" << rays.size() << " rays)";
   EXPECT_EQ(far_off, 0) << what << ": hits not at the aimed point";
@@ -101,16 +101,16 @@ TYPED_TEST(TraceWatertight, IcosphereVerticesAndEdges) {
   const Mesh sphere = make_icosphere(3);
   for (const auto& c : kCentres)
     for (bool in_vertices : {true, false})
-      check_no_leaks<TypeParam::W, TypeParam::B>(sphere, 100.0, c, in_vertices,
-                                                 "icosphere at " + std::to_string(c[0]) + (in_vertices ? " (vertices)" : " (instance)"));
+      check_no_leaks<TypeParam::W, TypeParam::B>(
+          sphere, 100.0, c, in_vertices, "icosphere at " + std::to_string(c[0]) + (in_vertices ? " (vertices)" : " (instance)"));
 }
 
 TYPED_TEST(TraceWatertight, CubeCornersEdgesAndDiagonals) {
   const Mesh cube = make_cube(1.0);
   for (const auto& c : kCentres)
     for (bool in_vertices : {true, false})
-      check_no_leaks<TypeParam::W, TypeParam::B>(cube, 50.0, c, in_vertices,
-                                                 "cube at " + std::to_string(c[0]) + (in_vertices ? " (vertices)" : " (instance)"));
+      check_no_leaks<TypeParam::W, TypeParam::B>(
+          cube, 50.0, c, in_vertices, "cube at " + std::to_string(c[0]) + (in_vertices ? " (vertices)" : " (instance)"));
 }
 
 // Random directions from inside, with axis-parallel, ±0, denormal and 1e-9 components (case 3).
@@ -138,5 +138,6 @@ TYPED_TEST(TraceWatertight, InsideRaysWithSpecialDirections) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp

@@ -17,7 +17,8 @@
 #include "voxel_rng.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using voxel::DagHit;
 using voxel::DagPool;
@@ -124,7 +125,9 @@ const char* family_name(Family f) {
 void make_triangle(Rng& rng, Family f, const Grid& g, Vec3d v[3]) {
   const double R = g.resolution;
   auto place = [&](double gx, double gy, double gz) { return g.origin + Vec3d{gx, gy, gz} * g.cell; };
-  auto dy = [&](int bits) { return place(rng.dyadic(-1, R + 1, bits), rng.dyadic(-1, R + 1, bits), rng.dyadic(-1, R + 1, bits)); };
+  auto dy = [&](int bits) {
+    return place(rng.dyadic(-1, R + 1, bits), rng.dyadic(-1, R + 1, bits), rng.dyadic(-1, R + 1, bits));
+  };
   switch (f) {
     case Family::kDyadic:
       for (int i = 0; i < 3; ++i) v[i] = dy(6);  // few bits: the double arithmetic under test is exact
@@ -194,14 +197,14 @@ void make_triangle(Rng& rng, Family f, const Grid& g, Vec3d v[3]) {
 // leaves touched cells unset.
 TEST(VoxelVoxelize, ConservativeEqualsExactSeparatingAxisReference) {
   Rng rng(1);
-  const Family families[] = {Family::kDyadic,     Family::kAxisAligned, Family::kOnGridPlanes, Family::kTiny,
-                             Family::kNeedle,     Family::kDegenerate,  Family::kFloat};
+  const Family families[] = {Family::kDyadic, Family::kAxisAligned, Family::kOnGridPlanes, Family::kTiny,
+                             Family::kNeedle, Family::kDegenerate,  Family::kFloat};
   const double kTinyGrow = 0x1.0p-20;  // "farther than margin + tiny"
   uint64_t triangles = 0, thin_missed = 0, thin_touched = 0;
   for (Family f : families) {
     uint64_t fam_missing = 0, fam_extra = 0, fam_ref = 0, fam_set = 0, fam_tris = 0;
     for (int t = 0; t < 700; ++t) {
-      const uint32_t R = 4u << rng.below(3);  // 4, 8, 16
+      const uint32_t R = 4u << rng.below(3);                                         // 4, 8, 16
       const double cell = std::ldexp(double(1 + rng.below(4)), -int(rng.below(3)));  // 1/4 .. 4, dyadic
       const Vec3d origin{rng.dyadic(-3, 3, 4), rng.dyadic(-3, 3, 4), rng.dyadic(-3, 3, 4)};
       const Grid shape(origin, cell, R);
@@ -216,10 +219,10 @@ TEST(VoxelVoxelize, ConservativeEqualsExactSeparatingAxisReference) {
       voxel::voxelize_triangle(got, v[0], v[1], v[2], margin + rounding);
       const Grid must = reference_voxels(shape, v[0], v[1], v[2], margin);
       fam_missing += missing(must, got);
-      EXPECT_EQ(missing(must, got), 0u) << family_name(f) << " triangle " << t << " R=" << R << " cell=" << cell
-                                        << " origin=(" << origin.x << "," << origin.y << "," << origin.z << ") margin=" << margin << " (" << v[0].x << "," << v[0].y << "," << v[0].z << ") ("
-                                        << v[1].x << "," << v[1].y << "," << v[1].z << ") (" << v[2].x << "," << v[2].y << ","
-                                        << v[2].z << ")";
+      EXPECT_EQ(missing(must, got), 0u) << family_name(f) << " triangle " << t << " R=" << R << " cell=" << cell << " origin=("
+                                        << origin.x << "," << origin.y << "," << origin.z << ") margin=" << margin << " ("
+                                        << v[0].x << "," << v[0].y << "," << v[0].z << ") (" << v[1].x << "," << v[1].y << ","
+                                        << v[1].z << ") (" << v[2].x << "," << v[2].y << "," << v[2].z << ")";
       if (!zero_area(v[0], v[1], v[2])) {
         const Grid may = reference_voxels(shape, v[0], v[1], v[2], margin + rounding + kTinyGrow);
         fam_extra += missing(got, may);
@@ -301,10 +304,9 @@ TEST(VoxelVoxelize, Avx2RowsSetTheScalarCells) {
     Grid scalar = shape, avx2 = shape;
     voxel::voxelize_triangle(scalar, v[0], v[1], v[2], margin, Isa::kScalar);
     voxel::voxelize_triangle(avx2, v[0], v[1], v[2], margin, Isa::kAvx2);
-    ASSERT_EQ(avx2.dense(), scalar.dense())
-        << "triangle " << t << " R=" << R << " cell=" << cell << " margin=" << margin << " (" << v[0].x << ","
-        << v[0].y << "," << v[0].z << ") (" << v[1].x << "," << v[1].y << "," << v[1].z << ") (" << v[2].x << ","
-        << v[2].y << "," << v[2].z << ")";
+    ASSERT_EQ(avx2.dense(), scalar.dense()) << "triangle " << t << " R=" << R << " cell=" << cell << " margin=" << margin << " ("
+                                            << v[0].x << "," << v[0].y << "," << v[0].z << ") (" << v[1].x << "," << v[1].y << ","
+                                            << v[1].z << ") (" << v[2].x << "," << v[2].y << "," << v[2].z << ")";
     ++triangles;
     cells += scalar.count();
     // Boxes the rows take (at most 8 cells along x, 64 in all) and the single-row path does not, and
@@ -322,10 +324,11 @@ TEST(VoxelVoxelize, Avx2RowsSetTheScalarCells) {
     small_boxes += spans >= 2 && volume <= 64;
     small_across += spans >= 2 && volume <= 64 && across;
   }
-  std::printf("[ voxelize ] AVX2 rows vs scalar: %llu triangles (%llu small boxes of two or more rows, %llu of them "
-              "across a block face), %llu cells, all equal\n",
-              (unsigned long long)triangles, (unsigned long long)small_boxes, (unsigned long long)small_across,
-              (unsigned long long)cells);
+  std::printf(
+      "[ voxelize ] AVX2 rows vs scalar: %llu triangles (%llu small boxes of two or more rows, %llu of them "
+      "across a block face), %llu cells, all equal\n",
+      (unsigned long long)triangles, (unsigned long long)small_boxes, (unsigned long long)small_across,
+      (unsigned long long)cells);
   EXPECT_GT(small_boxes, triangles / 3);
   EXPECT_GT(small_across, small_boxes / 4);
   EXPECT_GT(cells, 10 * triangles);
@@ -385,8 +388,7 @@ TEST(VoxelVoxelize, MarkBoxSetsExactlyTheOverlappedCells) {
         for (uint32_t x = 0; x < R; ++x) {
           const uint32_t c[3] = {x, y, z};
           bool in = true;
-          for (int k = 0; k < 3; ++k)
-            in = in && origin[k] + c[k] * cell <= hi[k] && origin[k] + (c[k] + 1) * cell >= lo[k];
+          for (int k = 0; k < 3; ++k) in = in && origin[k] + c[k] * cell <= hi[k] && origin[k] + (c[k] + 1) * cell >= lo[k];
           expected += in;
           ASSERT_EQ(g.get(x, y, z), in) << "trial " << trial << " cell (" << x << "," << y << "," << z << ")";
         }
@@ -394,5 +396,6 @@ TEST(VoxelVoxelize, MarkBoxSetsExactlyTheOverlappedCells) {
   }
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

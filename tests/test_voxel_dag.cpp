@@ -16,7 +16,8 @@
 #include "voxel_rng.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 using voxel::DagHit;
 using voxel::DagPool;
@@ -25,7 +26,6 @@ using voxel::Grid;
 using voxel::LocalDag;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
 
 // ---------------------------------------------------------------------------------------------
 // ---------------------------------------------------------------------------------------------
@@ -77,8 +77,8 @@ TEST(VoxelDag, BuildDecodeRoundTrip) {
       const fmt::DagGrid dg = dag_grid(g, d.root);
       EXPECT_EQ(voxel::check_dag(dg, view_of(d)), "") << "R=" << R << " grid " << t;
       const Grid back = voxel::decode_dag(dg, view_of(d));
-      EXPECT_TRUE(back.dense() == g.dense()) << "R=" << R << " grid " << t << ": decoded " << back.count() << " cells of "
-                                           << g.count();
+      EXPECT_TRUE(back.dense() == g.dense())
+          << "R=" << R << " grid " << t << ": decoded " << back.count() << " cells of " << g.count();
       EXPECT_EQ(back.resolution, R);
       EXPECT_EQ(voxel::dag_reachable_bytes(dg, view_of(d)), d.bytes()) << "a DAG built alone is all reachable";
       if (R == 4 && d.root != fmt::kDagEmpty && d.root != fmt::kDagFull) {
@@ -108,7 +108,7 @@ TEST(VoxelDag, BuildDecodeRoundTrip) {
     Grid almost = full;
     almost.set_block(nb - 1, nb - 1, nb - 1, ~uint64_t(0) >> 1);
     const LocalDag a = build_dag(almost);
-    EXPECT_EQ(a.leaves.size(), R == 4 ? 1u : 0u);  // used once: inline in its level-1 node (R = 4: the root)
+    EXPECT_EQ(a.leaves.size(), R == 4 ? 1u : 0u);                       // used once: inline in its level-1 node (R = 4: the root)
     EXPECT_EQ(a.node_offsets.size(), size_t(std::countr_zero(R / 4)));  // one node per level
     EXPECT_TRUE(voxel::decode_dag(dag_grid(almost, a.root), view_of(a)).dense() == almost.dense());
   }
@@ -248,7 +248,8 @@ TEST(VoxelDag, CheckDagReportsCorruption) {
       {"inline leaf all ones", [&](auto& w, auto&, auto&) { w[n2 + 1] = w[n2 + 2] = ~0u; }},
       {"inline mask outside the references", [&](auto& w, auto&, auto&) { w[n2] |= (~w[n2] & 0xFFu) << 16; }},
       {"inline leaves above level 1", [&](auto& w, auto&, auto&) { w[root] |= (w[root] & 0xFFu) << 16; }},
-      {"inline leaf runs past the pool", [&](auto& w, auto&, auto& gr) {
+      {"inline leaf runs past the pool",
+       [&](auto& w, auto&, auto& gr) {
          gr.resolution = 8, gr.root = n2;  // n2 as the level-1 root of an 8^3 grid, its last word cut off
          w.resize(n2 + fmt::dag_node_words(w[n2]) - 1);
        }},
@@ -377,9 +378,9 @@ TEST(VoxelDagQuery, NeverCullsWhatTheReferenceHits) {
             late += is_late;
             EXPECT_FALSE(bad || is_late) << "R=" << R << " grid " << gi << " ray " << i << " variant " << variant
                                          << (bad ? ": culled" : ": late entry ") << " ref t=" << ref.t_entry
-                                         << " dag t=" << got.t_entry << " org (" << r.org[0] << "," << r.org[1] << ","
-                                         << r.org[2] << ") dir (" << r.dir[0] << "," << r.dir[1] << "," << r.dir[2]
-                                         << ") [" << r.tnear << "," << r.tfar << "]";
+                                         << " dag t=" << got.t_entry << " org (" << r.org[0] << "," << r.org[1] << "," << r.org[2]
+                                         << ") dir (" << r.dir[0] << "," << r.dir[1] << "," << r.dir[2] << ") [" << r.tnear << ","
+                                         << r.tfar << "]";
             if (!got.culled) {
               EXPECT_GE(got.t_entry, r.tnear);
             }
@@ -401,11 +402,11 @@ TEST(VoxelDagQuery, NeverCullsWhatTheReferenceHits) {
       }
     }
   }
-  std::printf("[ dag query] %llu rays (%llu at interval edges): reference hits %llu, reference culls %llu, DAG culls %llu, "
-              "%llu false culls, %llu late entries\n",
-              (unsigned long long)rays, (unsigned long long)edge_rays, (unsigned long long)ref_hits,
-              (unsigned long long)ref_culled, (unsigned long long)dag_culled, (unsigned long long)false_culls,
-              (unsigned long long)late);
+  std::printf(
+      "[ dag query] %llu rays (%llu at interval edges): reference hits %llu, reference culls %llu, DAG culls %llu, "
+      "%llu false culls, %llu late entries\n",
+      (unsigned long long)rays, (unsigned long long)edge_rays, (unsigned long long)ref_hits, (unsigned long long)ref_culled,
+      (unsigned long long)dag_culled, (unsigned long long)false_culls, (unsigned long long)late);
   EXPECT_EQ(false_culls, 0u);
   EXPECT_EQ(late, 0u);
   EXPECT_GT(ref_hits, rays / 5) << "the rays must meet set cells";
@@ -440,5 +441,6 @@ TEST(VoxelDagQuery, SingleCellAndSpecialRoots) {
   EXPECT_LE(full.t_entry, 10.0);
 }
 
-}}  // namespace
+}  // namespace RTP_UNITY_ID
+}  // namespace
 }  // namespace rtp::test

@@ -22,7 +22,8 @@
 #include "voxel_cells.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using voxel::Grid;
@@ -91,8 +92,8 @@ Totals check_scene(const std::string& path, uint64_t points_wanted) {
       ++t.set;
       if (!near.get(x, y, z)) {
         if (t.far_out < 5)
-          ADD_FAILURE() << path << " point " << p << ": cell (" << x << ", " << y << ", " << z << ") is set, more than "
-                        << kReach << " cells from any triangle of the point";
+          ADD_FAILURE() << path << " point " << p << ": cell (" << x << ", " << y << ", " << z << ") is set, more than " << kReach
+                        << " cells from any triangle of the point";
         ++t.far_out;
       }
     });

@@ -21,7 +21,8 @@
 #include "voxel_rng.h"
 
 namespace rtp::test {
-namespace { namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
 
 namespace fs = std::filesystem;
 using voxel::Grid;
@@ -44,7 +45,7 @@ TEST(VoxelGrid, MergeIsTheUnionOfTheCells) {
   ASSERT_GT(second.count(), 0u);
   ASSERT_LT(first.count(), all.count());  // each half alone misses cells: the merge has work to do
   Grid merged(origin, cell, res);
-  merged.merge(first);  // into a grid without bricks
+  merged.merge(first);   // into a grid without bricks
   merged.merge(second);  // into allocated bricks, and new ones
   EXPECT_EQ(merged.dense(), all.dense());
   EXPECT_EQ(merged.count(), all.count());
@@ -88,7 +89,8 @@ uint64_t check_largest_point(const std::string& path) {
     const Instance& in = scene.instances[piece.instance];
     const Mesh& m = piece.mesh;
     const auto world = [&](size_t i) { return in.transform.apply(to_d(m.positions[m.indices[i]])); };
-    for (size_t i = 0; i + 2 < m.indices.size(); i += 3) voxel::voxelize_triangle(touched, world(i), world(i + 1), world(i + 2), 0.0);
+    for (size_t i = 0; i + 2 < m.indices.size(); i += 3)
+      voxel::voxelize_triangle(touched, world(i), world(i + 1), world(i + 2), 0.0);
   }
   uint64_t missing = 0, far = 0, n_touched = 0;
   for_each_cell(touched, [&](uint32_t x, uint32_t y, uint32_t z) {

@@ -22,8 +22,8 @@ extern char** environ;
 namespace rtp::test {
 
 struct ToolResult {
-  int code = -1;       // exit status, or -1 when killed by a signal / timed out
-  int signal = 0;      // the terminating signal, if any
+  int code = -1;   // exit status, or -1 when killed by a signal / timed out
+  int signal = 0;  // the terminating signal, if any
   bool timed_out = false;
   long max_rss_kib = 0;  // the tool's peak resident set (KiB); see wait_tool
   std::string out, err;
@@ -78,7 +78,7 @@ inline ToolResult wait_tool(pid_t pid, const std::filesystem::path& io_dir, doub
   ToolResult r;
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int status = 0;
-  struct rusage ru{};
+  struct rusage ru {};
   for (;;) {
     const pid_t w = ::wait4(pid, &status, WNOHANG, &ru);
     if (w == pid) break;

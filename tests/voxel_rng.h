@@ -15,7 +15,7 @@ struct Rng {
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return z ^ (z >> 31);
   }
-  double uniform() { return double(next() >> 11) * 0x1.0p-53; }       // [0, 1)
+  double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
   double range(double a, double b) { return a + (b - a) * uniform(); }
   uint32_t below(uint32_t n) { return uint32_t(next() % n); }
   // A multiple of 2^-bits in [a, b].

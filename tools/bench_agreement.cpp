@@ -29,8 +29,10 @@ Agreement agreement_any(const Scene& scene, const KindData& k, const std::vector
   const AnyHitReport r = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, opt, k.skip.data(), own_closest.data());
   const AnyHitReport own = check_any_hit(k.rays.data(), own_closest.data(), occ.data(), n, opt);
   Agreement a{r.consistent, r.edge_ties, r.precision_ties, r.failures + own.failures, r.skipped, {}, r.reference_errors};
-  if (!r.first_failures.empty()) a.first_failure = r.first_failures[0].describe();
-  else if (!own.first_failures.empty()) a.first_failure = "(any hit vs rtpack's own closest hit)\n" + own.first_failures[0].describe();
+  if (!r.first_failures.empty())
+    a.first_failure = r.first_failures[0].describe();
+  else if (!own.first_failures.empty())
+    a.first_failure = "(any hit vs rtpack's own closest hit)\n" + own.first_failures[0].describe();
   return a;
 }
 

@@ -16,8 +16,8 @@ struct KindData {
   RayKind kind;
   bool any = false;  // timed as any-hit
   std::vector<fmt::Ray> rays;
-  std::vector<fmt::Hit> ref_hits;  // Embree closest hits (reference for both query types)
-  std::vector<uint8_t> skip;       // rays Embree cannot take: no reference
+  std::vector<fmt::Hit> ref_hits;                      // Embree closest hits (reference for both query types)
+  std::vector<uint8_t> skip;                           // rays Embree cannot take: no reference
   RayCoherence coherence = RayCoherence::kIncoherent;  // how Embree is timed on these rays
   RayGenInfo info;
   uint64_t embree_timed_failures = 0;  // timed Embree answers (packets for primary) vs the stream reference

@@ -117,10 +117,14 @@ int run_budget_bench(BudgetBenchConfig cfg) {
       in_core_s = std::min(in_core_s, since(t0));
     }
     std::fprintf(out, "%-8s %7s %6s %10s %8s %10s %9s %9s %8.3f %10s %10.1f  (in core; load %.2f s not counted)\n",
-                 ray_kind_name(kind), "-", "off", "-", "-", "-", "-", "-", in_core_s, "1.00", double(in_core->load_stats().raw_bytes) / 1048576.0,
-                 in_core_load);
-    records.push_back({{"kind", ray_kind_name(kind)}, {"mode", "in_core"}, {"rays", rays.size()}, {"seconds", in_core_s},
-                       {"load_seconds", in_core_load}, {"resident_bytes", in_core->load_stats().raw_bytes}});
+                 ray_kind_name(kind), "-", "off", "-", "-", "-", "-", "-", in_core_s, "1.00",
+                 double(in_core->load_stats().raw_bytes) / 1048576.0, in_core_load);
+    records.push_back({{"kind", ray_kind_name(kind)},
+                       {"mode", "in_core"},
+                       {"rays", rays.size()},
+                       {"seconds", in_core_s},
+                       {"load_seconds", in_core_load},
+                       {"resident_bytes", in_core->load_stats().raw_bytes}});
     // Every (budget, culling) run of this kind, best of --reps, the repetitions interleaved (run 1 of each,
     // then run 2 of each, ...) after one untimed run of the first: the first out-of-core run of a process
     // faults in the cache's memory, which later runs reuse, so without it whichever ran first (culling on)
@@ -139,7 +143,8 @@ int run_budget_bench(BudgetBenchConfig cfg) {
         if (!cull && !in_core->has_dags()) continue;
         if (cfg.culling != "both" && cull != (cfg.culling == "on")) continue;
         if (budget < minimum) {
-          std::fprintf(out, "%-8s %6.0f%% %6s below the minimum budget: skipped\n", ray_kind_name(kind), pct, cull ? "on" : "off");
+          std::fprintf(out, "%-8s %6.0f%% %6s below the minimum budget: skipped\n", ray_kind_name(kind), pct,
+                       cull ? "on" : "off");
           continue;
         }
         configs.push_back({pct, budget, cull, {}});
@@ -172,16 +177,30 @@ int run_budget_bench(BudgetBenchConfig cfg) {
                    (unsigned long long)st.cache.loads, double(st.cache.bytes_read) / 1048576.0, 100 * st.cache.hit_rate(),
                    st.total_seconds, st.total_seconds / in_core_s, double(st.peak_resident_bytes) / 1048576.0,
                    c.same ? "" : "  HITS DIFFER FROM IN CORE");
-      records.push_back({{"kind", ray_kind_name(kind)}, {"mode", "out_of_core"}, {"budget_percent", c.pct}, {"budget_bytes", c.budget},
-                         {"cull", c.cull}, {"rays", rays.size()}, {"rounds", st.rounds}, {"passes", st.passes}, {"chunks_loaded", st.cache.loads},
-                         {"bytes_read", st.cache.bytes_read}, {"raw_bytes_loaded", st.cache.raw_bytes_loaded},
+      records.push_back({{"kind", ray_kind_name(kind)},
+                         {"mode", "out_of_core"},
+                         {"budget_percent", c.pct},
+                         {"budget_bytes", c.budget},
+                         {"cull", c.cull},
+                         {"rays", rays.size()},
+                         {"rounds", st.rounds},
+                         {"passes", st.passes},
+                         {"chunks_loaded", st.cache.loads},
+                         {"bytes_read", st.cache.bytes_read},
+                         {"raw_bytes_loaded", st.cache.raw_bytes_loaded},
                          {"chunks_prefetched", st.cache.prefetched},
-                         {"cache_hit_rate", st.cache.hit_rate()}, {"seconds", st.total_seconds},
-                         {"load_seconds", st.load_seconds}, {"walk_seconds", st.walk_seconds},
-                         {"trace_seconds", st.trace_seconds}, {"vs_in_core", st.total_seconds / in_core_s},
-                         {"peak_cache_bytes", st.cache.peak_resident_bytes}, {"peak_resident_bytes", st.peak_resident_bytes},
-                         {"culled_visits", st.culled_visits}, {"point_visits", st.point_visits},
-                         {"identical_to_in_core", c.same}, {"reps", cfg.reps}});
+                         {"cache_hit_rate", st.cache.hit_rate()},
+                         {"seconds", st.total_seconds},
+                         {"load_seconds", st.load_seconds},
+                         {"walk_seconds", st.walk_seconds},
+                         {"trace_seconds", st.trace_seconds},
+                         {"vs_in_core", st.total_seconds / in_core_s},
+                         {"peak_cache_bytes", st.cache.peak_resident_bytes},
+                         {"peak_resident_bytes", st.peak_resident_bytes},
+                         {"culled_visits", st.culled_visits},
+                         {"point_visits", st.point_visits},
+                         {"identical_to_in_core", c.same},
+                         {"reps", cfg.reps}});
     }
   }
   if (cfg.json) {

@@ -17,13 +17,13 @@ struct BudgetBenchConfig {
   std::string scene_path, package;
   std::vector<std::string> allow_paths;
   std::vector<double> budgets = {100, 50, 25, 10, 5};  // percent of the package's on-demand bytes
-  std::string budgets_text;                             // --budgets as given (parsed by run_budget_bench)
+  std::string budgets_text;                            // --budgets as given (parsed by run_budget_bench)
   std::vector<RayKind> kinds = {RayKind::kBounce};
   size_t rays = 1 << 18;
   uint64_t seed = 1;
   int threads = 0;  // 0: all
   bool direct_io = false;
-  bool prefetch = false;  // --prefetch: read ahead on an I/O thread while a round traces
+  bool prefetch = false;         // --prefetch: read ahead on an I/O thread while a round traces
   std::string culling = "both";  // --culling on|off|both
   std::string save_rays;         // --save-rays PREFIX: PREFIX-KIND.rays (formats/ray_file.h) for rtpack-trace
   bool json = false;

@@ -52,7 +52,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-
 std::string human(double bytes) { return rtp::human_bytes(bytes); }
 
 std::string percent_decode(const std::string& s) {
@@ -102,8 +101,8 @@ struct ConvertRun {
   std::vector<std::string> warnings;
 };
 
-ConvertRun convert_once(const ConvertBenchConfig& cfg, const std::string& output, Progress& progress,
-                        const std::string& label, std::optional<Scene>* keep) {
+ConvertRun convert_once(const ConvertBenchConfig& cfg, const std::string& output, Progress& progress, const std::string& label,
+                        std::optional<Scene>* keep) {
   // rtpack-convert's own pipeline (package/convert.h) with its defaults and the options this bench
   // exposes: the same call, so the same bytes.
   ConvertSettings cs;
@@ -218,8 +217,10 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   json sections = json::object();
   for (const auto& [kind, s] : c.report.by_kind) {
     sections_stored += s.stored;
-    sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
-                      {"bytes_per_unique_triangle", double(s.stored) / tris}};
+    sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks},
+                                            {"raw_bytes", s.raw},
+                                            {"stored_bytes", s.stored},
+                                            {"bytes_per_unique_triangle", double(s.stored) / tris}};
   }
   const uint64_t container = package_bytes - std::min(package_bytes, sections_stored);
   const uint64_t in_bytes = fs::file_size(cfg.scene_path), in_total = input_total_bytes(cfg.scene_path);
@@ -243,7 +244,8 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
                 {"bvh_width", cfg.bvh_width},
                 {"leaf_width", leaf_width},
                 {"zstd_level", cfg.zstd_level},
-                {"zstd_raw_literals", cfg.zstd_raw_literals}, {"zstd_leaf_min_match", cfg.zstd_leaf_min_match},
+                {"zstd_raw_literals", cfg.zstd_raw_literals},
+                {"zstd_leaf_min_match", cfg.zstd_leaf_min_match},
                 {"dag", cfg.dag},
                 {"sections", sections},
                 {"sections_stored_bytes", sections_stored},
@@ -277,10 +279,12 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   FILE* o = cfg.json ? stderr : stdout;
   for (const std::string& w : warnings) std::fprintf(o, "warning: %s: %s\n", cfg.scene_path.c_str(), w.c_str());
   std::fprintf(o, "convert %s -> %s%s\n", cfg.scene_path.c_str(), output.c_str(), keep_output ? "" : " (temporary, deleted)");
-  std::fprintf(o, "cpu %s; %d of %d hardware threads; W=%d B=%d, zstd %d, chunk target %" PRIu64 "%s%s; best of %d after a warm-up\n",
-               cpu.c_str(), threads, hw, cfg.bvh_width, leaf_width, cfg.zstd_level, c.chunk_target,
-               cfg.chunk_target ? "" : " (derived)", cfg.dag ? "" : ", no culling DAGs (--no-dag)", cfg.reps);
-  std::fprintf(o, "triangles %" PRIu64 " unique, %" PRIu64 " instanced (%" PRIu64 " instances); %" PRIu64
+  std::fprintf(
+      o, "cpu %s; %d of %d hardware threads; W=%d B=%d, zstd %d, chunk target %" PRIu64 "%s%s; best of %d after a warm-up\n",
+      cpu.c_str(), threads, hw, cfg.bvh_width, leaf_width, cfg.zstd_level, c.chunk_target, cfg.chunk_target ? "" : " (derived)",
+      cfg.dag ? "" : ", no culling DAGs (--no-dag)", cfg.reps);
+  std::fprintf(o,
+               "triangles %" PRIu64 " unique, %" PRIu64 " instanced (%" PRIu64 " instances); %" PRIu64
                " chunks (%zu batching points, %zu mesh segments)\n",
                c.unique, c.instanced, c.instances, c.report.chunks, c.points, c.segments);
   std::fprintf(o, "bytes %s input (%" PRIu64 " B; %" PRIu64 " B with external files) -> %s package (%" PRIu64 " B)\n",
@@ -301,8 +305,8 @@ int run_convert_bench(const ConvertBenchConfig& cfg) {
   std::fprintf(o, "  %-40s %10.4f\n", "convert total", c.total());
   std::fprintf(o, "  %-40s %10.4f\n", "convert without import", c.without_import());
   std::fprintf(o, "  %-40s %10.4f  (%" PRIu64 " instances)\n", "Embree 3 HIGH build (ROBUST)", embree_s, embree_geometries);
-  std::fprintf(o, "\n  Embree / convert %.3f, Embree / convert without import %.3f, Embree / chunks %.3f\n",
-               embree_s / c.total(), embree_s / c.without_import(), embree_s / c.chunks_s);
+  std::fprintf(o, "\n  Embree / convert %.3f, Embree / convert without import %.3f, Embree / chunks %.3f\n", embree_s / c.total(),
+               embree_s / c.without_import(), embree_s / c.chunks_s);
   std::fprintf(o, "  peak RSS %.1f MiB after the convert runs, %.1f MiB after the Embree builds\n", rss_convert, rss_all);
   std::fprintf(o, "  malloc huge pages %s (both the convert and Embree run in this process)\n",
                rtp::tools::huge_page_state().c_str());

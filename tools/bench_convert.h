@@ -14,15 +14,15 @@ namespace rtp::bench {
 struct ConvertBenchConfig {
   std::string scene_path;
   std::vector<std::string> allow_paths;  // --allow-path
-  std::string output;         // --convert-output: keep the package there (else a temporary file, deleted)
-  int bvh_width = 8;          // leaf width = W, 8 for W = 16 (rtpack-convert's default)
+  std::string output;                    // --convert-output: keep the package there (else a temporary file, deleted)
+  int bvh_width = 8;                     // leaf width = W, 8 for W = 16 (rtpack-convert's default)
   int zstd_level = kDefaultZstdLevel;
-  bool zstd_raw_literals = true;  // --zstd-huffman-literals: false
+  bool zstd_raw_literals = true;                   // --zstd-huffman-literals: false
   int zstd_leaf_min_match = kDefaultLeafMinMatch;  // --zstd-leaf-min-match
-  uint64_t chunk_target = 0;  // 0 = derived from the scene
-  bool dag = true;            // --no-dag: false (no culling DAGs, as rtpack-convert --no-dag)
-  int threads = 0;            // 0 = all hardware threads
-  int reps = 3;               // best of reps after one warm-up (convert and Embree alike)
+  uint64_t chunk_target = 0;                       // 0 = derived from the scene
+  bool dag = true;                                 // --no-dag: false (no culling DAGs, as rtpack-convert --no-dag)
+  int threads = 0;                                 // 0 = all hardware threads
+  int reps = 3;                                    // best of reps after one warm-up (convert and Embree alike)
   bool json = false;
 };
 

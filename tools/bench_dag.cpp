@@ -101,8 +101,7 @@ CLI::Option* add_dag_options(CLI::App& app, DagBenchConfig& cfg) {
     try {
       const unsigned long v = std::stoul(s);
       if (v >= 4 && v <= 1024 && (v & (v - 1)) == 0) return std::string();
-    } catch (...) {
-    }
+    } catch (...) {}
     return std::string("must be a power of two from 4 to 1024");
   };
   const auto pow2_or_0 = [pow2](const std::string& s) { return s == "0" ? std::string() : pow2(s); };
@@ -243,11 +242,13 @@ int run_dag_bench(const DagBenchConfig& cfg) {
     std::fprintf(o, "  %-28s %10s %7s %10s %12s %12s %12s | %12s %12s %12s\n", "model", "triangles", "points", "set cells",
                  "SVO B", "DAG alone B", "own pool B", "voxelize ms", "tri loop ms", "build_dag ms");
     for (const ProxyRecord& r : proxies)
-      std::fprintf(o, "  %-28s %10" PRIu64 " %7" PRIu64 " %10" PRIu64 " %12" PRIu64 " %12" PRIu64 " %12" PRIu64
+      std::fprintf(o,
+                   "  %-28s %10" PRIu64 " %7" PRIu64 " %10" PRIu64 " %12" PRIu64 " %12" PRIu64 " %12" PRIu64
                    " | %12.2f %12.2f %12.2f\n",
                    base_name(r.scene).c_str(), r.unique, r.points, r.set_cells, r.svo_bytes, r.dag_bytes, r.own_pool_bytes,
                    r.voxelize_s * 1e3, r.loop_s * 1e3, r.build_dag_s * 1e3);
-    std::fprintf(o, "  all %zu in one shared pool: %" PRIu64 " B (own pools summed %" PRIu64 " B, SVOs %" PRIu64
+    std::fprintf(o,
+                 "  all %zu in one shared pool: %" PRIu64 " B (own pools summed %" PRIu64 " B, SVOs %" PRIu64
                  " B); sharing saves %" PRId64 " B (%.2f%%)\n",
                  proxies.size(), shared_bytes, alone_sum, svo_sum, int64_t(alone_sum) - int64_t(shared_bytes),
                  alone_sum ? 100.0 * (1.0 - double(shared_bytes) / double(alone_sum)) : 0.0);
@@ -256,11 +257,11 @@ int run_dag_bench(const DagBenchConfig& cfg) {
   if (!sweeps.empty()) {
     std::fprintf(o, "\nresolution sweep (closest hit, %s, %s order; same package and rays, culling on vs off):\n",
                  isa_name(cfg.isa), cfg.order == TraversalOrder::kOctantStack ? "octant" : "active");
-    std::fprintf(o, "  %-16s %5s %-7s %8s %12s %12s %10s %10s %8s %11s %11s %7s %s\n", "scene", "R", "kind", "rays",
-                 "pool B", "package B", "visits", "culled", "cull %", "Mrays cull", "Mrays off", "ratio", "hits");
+    std::fprintf(o, "  %-16s %5s %-7s %8s %12s %12s %10s %10s %8s %11s %11s %7s %s\n", "scene", "R", "kind", "rays", "pool B",
+                 "package B", "visits", "culled", "cull %", "Mrays cull", "Mrays off", "ratio", "hits");
     for (const SweepRecord& s : sweeps)
-      std::fprintf(o, "  %-16s %5u %-7s %8zu %12" PRIu64 " %12" PRIu64 " %10" PRIu64 " %10" PRIu64
-                   " %8.2f %11.3f %11.3f %7.3f %s\n",
+      std::fprintf(o,
+                   "  %-16s %5u %-7s %8zu %12" PRIu64 " %12" PRIu64 " %10" PRIu64 " %10" PRIu64 " %8.2f %11.3f %11.3f %7.3f %s\n",
                    base_name(s.scene).c_str(), s.resolution, ray_kind_name(s.kind), s.rays, s.pool_bytes, s.package_bytes,
                    s.visits_on, s.culled, 100 * s.cull_rate(), s.mrays_on, s.mrays_off, s.mrays_on / s.mrays_off,
                    s.mismatched ? "DIFFER" : "identical");
@@ -270,15 +271,19 @@ int run_dag_bench(const DagBenchConfig& cfg) {
     std::fprintf(o, "  %-22s %10s %7s %10s %10s %7s %12s %12s %7s %11s %11s  %s\n", "scene", "triangles", "points", "s DAG",
                  "s no DAG", "ratio", "B DAG", "B no DAG", "ratio", "pool B", "voxelize s", "resolutions");
     for (const ConvertCost& c : converts)
-      std::fprintf(o, "  %-22s %10" PRIu64 " %7" PRIu64 " %10.3f %10.3f %7.3f %12" PRIu64 " %12" PRIu64
-                   " %7.4f %11" PRIu64 " %11.3f  %s\n",
-                   base_name(c.scene).c_str(), c.instanced, c.points, c.with_s, c.without_s, c.with_s / c.without_s,
-                   c.with_bytes, c.without_bytes, double(c.with_bytes) / double(c.without_bytes), c.pool_bytes,
-                   c.voxelize_s, resolutions_text(c.resolutions).c_str());
+      std::fprintf(o,
+                   "  %-22s %10" PRIu64 " %7" PRIu64 " %10.3f %10.3f %7.3f %12" PRIu64 " %12" PRIu64 " %7.4f %11" PRIu64
+                   " %11.3f  %s\n",
+                   base_name(c.scene).c_str(), c.instanced, c.points, c.with_s, c.without_s, c.with_s / c.without_s, c.with_bytes,
+                   c.without_bytes, double(c.with_bytes) / double(c.without_bytes), c.pool_bytes, c.voxelize_s,
+                   resolutions_text(c.resolutions).c_str());
   }
   if (mismatched) {
-    std::fprintf(o, "\nHITS DIFFER with culling on vs off on %" PRId64 " rays in total: the culling is wrong and these "
-                 "numbers are worthless.\n", mismatched);
+    std::fprintf(o,
+                 "\nHITS DIFFER with culling on vs off on %" PRId64
+                 " rays in total: the culling is wrong and these "
+                 "numbers are worthless.\n",
+                 mismatched);
     return int(ExitCode::kInternal);
   }
   return 0;

@@ -19,18 +19,18 @@ class Option;
 namespace rtp::bench {
 
 struct DagBenchConfig {
-  std::vector<std::string> scenes;          // the first comes from rtpack-bench's SCENE positional
-  std::vector<std::string> allow_paths;     // --allow-path: further directories for external buffers
-  std::vector<std::string> parts{"proxy", "sweep", "convert"};  // --parts
-  std::vector<uint32_t> resolutions{32, 64, 128, 256, 512};     // --resolutions (sweep)
-  uint32_t proxy_resolution = 128;          // --proxy-resolution (proxy part)
-  size_t rays = size_t(1) << 17;            // per kind (rtpack-bench --rays)
+  std::vector<std::string> scenes;                                 // the first comes from rtpack-bench's SCENE positional
+  std::vector<std::string> allow_paths;                            // --allow-path: further directories for external buffers
+  std::vector<std::string> parts{"proxy", "sweep", "convert"};     // --parts
+  std::vector<uint32_t> resolutions{32, 64, 128, 256, 512};        // --resolutions (sweep)
+  uint32_t proxy_resolution = 128;                                 // --proxy-resolution (proxy part)
+  size_t rays = size_t(1) << 17;                                   // per kind (rtpack-bench --rays)
   std::vector<RayKind> kinds{RayKind::kBounce, RayKind::kRandom};  // rtpack-bench --kinds
   uint64_t seed = 1;
   Isa isa = Isa::kScalar;
   TraversalOrder order = TraversalOrder::kOctantStack;
-  int threads = 0;                          // 0 = all hardware threads (tracing and converting)
-  int reps = 3;                             // best of reps after one warm-up
+  int threads = 0;  // 0 = all hardware threads (tracing and converting)
+  int reps = 3;     // best of reps after one warm-up
   bool json = false;
 };
 

@@ -25,7 +25,6 @@ namespace rtp::bench::dag {
 // ---------------------------------------------------------------------------------------------
 // convert: the cost of the feature
 
-
 void run_convert(const DagBenchConfig& cfg, int threads, std::vector<ConvertCost>& out) {
   tbb::task_arena arena(threads);
   for (const std::string& path : cfg.scenes) {
@@ -68,8 +67,8 @@ void run_convert(const DagBenchConfig& cfg, int threads, std::vector<ConvertCost
     });
     c.with_bytes = fs::file_size(with.path);
     c.without_bytes = fs::file_size(without.path);
-    note("convert %s: %" PRIu64 " points; write_package %.3f s with DAGs vs %.3f s without (x%.2f); %" PRIu64
-         " vs %" PRIu64 " B (+%.1f%%) [%.1f s]",
+    note("convert %s: %" PRIu64 " points; write_package %.3f s with DAGs vs %.3f s without (x%.2f); %" PRIu64 " vs %" PRIu64
+         " B (+%.1f%%) [%.1f s]",
          base_name(path).c_str(), c.points, c.with_s, c.without_s, c.with_s / c.without_s, c.with_bytes, c.without_bytes,
          100.0 * (double(c.with_bytes) - double(c.without_bytes)) / double(c.without_bytes), since(t_scene));
     out.push_back(std::move(c));

@@ -55,12 +55,13 @@ struct SvoCount {
   }
   uint64_t run() {
     const int levels = std::countr_zero(g.resolution / 4);
-    if (levels == 0) bytes = leaf(0, 0, 0) == kPartial ? 8 : 0;  // R = 4: the root is a pooled leaf
-    else node(levels, 0, 0, 0);
+    if (levels == 0)
+      bytes = leaf(0, 0, 0) == kPartial ? 8 : 0;  // R = 4: the root is a pooled leaf
+    else
+      node(levels, 0, 0, 0);
     return bytes;
   }
 };
-
 
 }  // namespace
 

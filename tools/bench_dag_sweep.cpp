@@ -41,7 +41,6 @@ TraceCounts trace_all(const PackageTracer& tracer, const std::vector<fmt::Ray>& 
   return {visits.load(), culled.load()};
 }
 
-
 }  // namespace
 
 int64_t run_sweep(const DagBenchConfig& cfg, int threads, std::vector<SweepRecord>& out) {
@@ -149,12 +148,11 @@ int64_t run_sweep(const DagBenchConfig& cfg, int threads, std::vector<SweepRecor
         const SweepRecord& s = out[i];
         char buf[200];
         std::snprintf(buf, sizeof buf, "; %s cull %.1f%% %.2f/%.2f Mrays/s on/off (x%.2f)%s", ray_kind_name(s.kind),
-                      100 * s.cull_rate(), s.mrays_on, s.mrays_off, s.mrays_on / s.mrays_off,
-                      s.mismatched ? " HITS DIFFER" : "");
+                      100 * s.cull_rate(), s.mrays_on, s.mrays_off, s.mrays_on / s.mrays_off, s.mismatched ? " HITS DIFFER" : "");
         line += buf;
       }
-      const std::string at = res ? std::to_string(res) + "^3" : "default (voxels; instance boxes for " +
-                                                                    std::to_string(rep.box_points) + " points)";
+      const std::string at =
+          res ? std::to_string(res) + "^3" : "default (voxels; instance boxes for " + std::to_string(rep.box_points) + " points)";
       note("sweep %s %s: pool %" PRIu64 " B, convert %.2f s%s [%.1f s]", base_name(path).c_str(), at.c_str(), rep.dag_pool_bytes,
            convert_s, line.c_str(), since(t_res));
     }

@@ -53,8 +53,7 @@ ConvertOptions convert_options(const std::string& scene_path, bool dag, uint32_t
   cv.zstd_level = kDefaultZstdLevel;
   cv.dag = dag;
   cv.voxel.resolution = resolution;
-  cv.metadata = {{"tool_version", "rtpack " RTP_VERSION " (rtpack-bench --dag)"},
-                 {"source", base_name(scene_path)}};
+  cv.metadata = {{"tool_version", "rtpack " RTP_VERSION " (rtpack-bench --dag)"}, {"source", base_name(scene_path)}};
   return cv;
 }
 

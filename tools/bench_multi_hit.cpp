@@ -101,7 +101,8 @@ int run_multi_hit_bench(MultiHitBenchConfig cfg) {
       const double t_cull = best_of(cfg.reps, [&] { rtpack(cull, MultiHitMethod::kNodeCulling); });
       const double t_all = best_of(cfg.reps, [&] { rtpack(all, MultiHitMethod::kCollectAll); });
       const double t_emb = best_of(cfg.reps, [&] { embree.multi_hit(rays.data(), n, k, emb.hits.data(), emb.counts.data()); });
-      const bool same = cull.counts == all.counts && std::memcmp(cull.hits.data(), all.hits.data(), n * k * sizeof(fmt::Hit)) == 0;
+      const bool same =
+          cull.counts == all.counts && std::memcmp(cull.hits.data(), all.hits.data(), n * k * sizeof(fmt::Hit)) == 0;
       differ = differ || !same;
       uint64_t total = 0;
       for (uint32_t c : cull.counts) total += c;
@@ -111,10 +112,16 @@ int run_multi_hit_bench(MultiHitBenchConfig cfg) {
                    mr / t_all, mr / t_emb, t_all / t_cull, t_emb / t_cull, double(total) / double(n), agree, n,
                    same ? "" : "  NODE CULLING DIFFERS FROM COLLECT-ALL");
       std::fflush(out);
-      records.push_back({{"kind", ray_kind_name(kind)}, {"n", k}, {"rays", n}, {"node_culling_seconds", t_cull},
-                         {"collect_all_seconds", t_all}, {"embree_gather_seconds", t_emb},
-                         {"speedup_vs_collect_all", t_all / t_cull}, {"speedup_vs_embree", t_emb / t_cull},
-                         {"hits_per_ray", double(total) / double(n)}, {"rays_agreeing_with_embree", agree},
+      records.push_back({{"kind", ray_kind_name(kind)},
+                         {"n", k},
+                         {"rays", n},
+                         {"node_culling_seconds", t_cull},
+                         {"collect_all_seconds", t_all},
+                         {"embree_gather_seconds", t_emb},
+                         {"speedup_vs_collect_all", t_all / t_cull},
+                         {"speedup_vs_embree", t_emb / t_cull},
+                         {"hits_per_ray", double(total) / double(n)},
+                         {"rays_agreeing_with_embree", agree},
                          {"same_as_collect_all", same}});
     }
   }

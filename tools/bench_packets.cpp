@@ -65,8 +65,8 @@ int run_packet_bench(PacketBenchConfig cfg) {
   const EmbreeOracle embree(scene, OracleQuality::kHigh);
   std::fprintf(out, "scene %s: %llu instanced triangles; isa %s, W=8, %zu rays per kind, best of %d interleaved runs\n",
                cfg.scene_path.c_str(), (unsigned long long)scene.instanced_triangles(), isa_name(cfg.isa), cfg.rays, cfg.reps);
-  std::fprintf(out, "%-7s %-7s %6s %10s %10s %7s %11s %10s %10s  %s\n", "kind", "query", "packet", "rtpack", "Embree",
-               "ratio", "SIMD util.", "in packets", "tests/ray", "agree / edge ties / precision ties / FAILURES");
+  std::fprintf(out, "%-7s %-7s %6s %10s %10s %7s %11s %10s %10s  %s\n", "kind", "query", "packet", "rtpack", "Embree", "ratio",
+               "SIMD util.", "in packets", "tests/ray", "agree / edge ties / precision ties / FAILURES");
   nlohmann::json records = nlohmann::json::array();
   bool bad = false;
   for (RayKind kind : cfg.kinds) {
@@ -128,17 +128,26 @@ int run_packet_bench(PacketBenchConfig cfg) {
       const double share = double(st.packet_rays) / double(n);
       const double mr = double(n) * 1e-6;
       std::fprintf(out, "%-7s %-7s %6u %10.2f %10.2f %7.2f %10.1f%% %9.1f%% %10.2f  %llu / %llu / %llu / %llu%s\n",
-                   ray_kind_name(kind), k.any ? "any" : "closest", p, mr / secs, mr / embree_secs, embree_secs / secs,
-                   100 * util, 100 * share, double(st.packet_node_tests) / double(n), (unsigned long long)agree.agree,
+                   ray_kind_name(kind), k.any ? "any" : "closest", p, mr / secs, mr / embree_secs, embree_secs / secs, 100 * util,
+                   100 * share, double(st.packet_node_tests) / double(n), (unsigned long long)agree.agree,
                    (unsigned long long)agree.edge_ties, (unsigned long long)agree.precision_ties,
                    (unsigned long long)agree.failures, same ? "" : "  PACKETS DIFFER FROM SINGLE RAYS");
       std::fflush(out);
-      records.push_back({{"kind", ray_kind_name(kind)}, {"query", k.any ? "any" : "closest"}, {"packet", p}, {"rays", n},
-                         {"rtpack_mrays", mr / secs}, {"embree_mrays", mr / embree_secs}, {"ratio", embree_secs / secs},
-                         {"simd_utilization", util}, {"packet_ray_share", share}, {"packets", st.packets},
-                         {"packet_node_tests", st.packet_node_tests}, {"packet_single_walks", st.packet_single_walks},
+      records.push_back({{"kind", ray_kind_name(kind)},
+                         {"query", k.any ? "any" : "closest"},
+                         {"packet", p},
+                         {"rays", n},
+                         {"rtpack_mrays", mr / secs},
+                         {"embree_mrays", mr / embree_secs},
+                         {"ratio", embree_secs / secs},
+                         {"simd_utilization", util},
+                         {"packet_ray_share", share},
+                         {"packets", st.packets},
+                         {"packet_node_tests", st.packet_node_tests},
+                         {"packet_single_walks", st.packet_single_walks},
                          {"packet_triangle_tests", st.packet_triangle_tests},
-                         {"same_as_single_rays", same}, {"failures", agree.failures}});
+                         {"same_as_single_rays", same},
+                         {"failures", agree.failures}});
     }
   }
   if (cfg.json) std::cout << mode_run_json(cfg.scene_path, isa_name(cfg.isa), cfg.threads, cfg.reps, records).dump(2) << "\n";

@@ -14,10 +14,9 @@ void print_row(FILE* o, const Record& r) {
   std::fprintf(o,
                "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
                " / %" PRIu64 " / %" PRIu64 "\n",
-               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays,
-               r.embree_mrays, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree,
-               r.agreement.edge_ties, r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped,
-               r.agreement.embree_errors);
+               ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays, r.embree_mrays,
+               r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree, r.agreement.edge_ties,
+               r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped, r.agreement.embree_errors);
   std::fflush(o);
 }
 

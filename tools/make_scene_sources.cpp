@@ -36,8 +36,9 @@ std::string resolve_default(const std::string& rel) {
     if (fs::is_regular_file(root / rel, ec)) return (root / rel).string();
     looked += (looked.empty() ? "" : ", ") + root.string();
   }
-  throw Error(ExitCode::kInputIo, "cannot find the default mesh '" + rel + "' (looked under: " + looked +
-                                      "); pass your own with --mesh FILE.gltf, or set RTP_DATA_DIR to a directory holding samples/");
+  throw Error(ExitCode::kInputIo,
+              "cannot find the default mesh '" + rel + "' (looked under: " + looked +
+                  "); pass your own with --mesh FILE.gltf, or set RTP_DATA_DIR to a directory holding samples/");
 }
 
 std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, const std::vector<std::string>& allow_paths,
@@ -66,7 +67,8 @@ std::vector<SourceMesh> load_sources(const std::vector<std::string>& files, cons
       for (const rtp::Vec3f& p : s.positions)
         if (!rtp::is_finite(p)) throw Error(ExitCode::kInputInvalid, file + ": mesh '" + s.name + "' has a non-finite position");
       for (uint32_t v : s.indices)
-        if (v >= s.positions.size()) throw Error(ExitCode::kInputInvalid, file + ": mesh '" + s.name + "' has an index out of range");
+        if (v >= s.positions.size())
+          throw Error(ExitCode::kInputInvalid, file + ": mesh '" + s.name + "' has an index out of range");
       out.push_back(std::move(s));
     }
     if (out.size() == before) throw Error(ExitCode::kInputInvalid, file + ": no mesh with triangles");

@@ -78,7 +78,10 @@ inline void configure_malloc([[maybe_unused]] char** argv) {
   const std::string value = tunables && *tunables ? std::string(tunables) + ":glibc.malloc.hugetlb=1" : "glibc.malloc.hugetlb=1";
   if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) == 0) {
     ::execv("/proc/self/exe", argv);  // returns only on failure
-    if (tunables) ::setenv("GLIBC_TUNABLES", tunables, 1); else ::unsetenv("GLIBC_TUNABLES");
+    if (tunables)
+      ::setenv("GLIBC_TUNABLES", tunables, 1);
+    else
+      ::unsetenv("GLIBC_TUNABLES");
   }
   state = std::string("off (could not re-execute: ") + std::strerror(errno) + ")";
 #endif

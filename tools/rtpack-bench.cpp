@@ -65,18 +65,18 @@ namespace {
 
 using namespace rtp;
 using bench::Agreement;
-using bench::BuildRecord;
-using bench::Record;
-using bench::build_record_json;
-using bench::print_row;
-using bench::sah_record_json;
-using bench::trace_record_json;
-using bench::Clock;
-using bench::KindData;
 using bench::agreement_any;
 using bench::agreement_closest;
 using bench::best_of;
+using bench::build_record_json;
+using bench::BuildRecord;
+using bench::Clock;
+using bench::KindData;
+using bench::print_row;
+using bench::Record;
+using bench::sah_record_json;
 using bench::seconds_since;
+using bench::trace_record_json;
 using nlohmann::json;
 
 constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers (EmbreeOracle uses 256)
@@ -84,7 +84,7 @@ constexpr size_t kGrain = 256;  // rays per TBB task, the same for both tracers 
 struct Config {
   std::string scene_path;
   std::vector<std::string> allow_paths;  // --allow-path: further directories for external buffers
-  size_t rays = 1u << 16;  // --all: 1 << 19
+  size_t rays = 1u << 16;                // --all: 1 << 19
   std::vector<RayKind> kinds;
   std::vector<int> widths;
   std::vector<int> threads;
@@ -135,7 +135,6 @@ uint64_t mesh_bvh_bytes(const InCoreScene<W, W>& s) {
   for (size_t m = 0; m < s.mesh_count(); ++m) b += s.mesh_stats(m).node_bytes + s.mesh_stats(m).block_bytes;
   return b;
 }
-
 
 template <int W>
 void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std::vector<KindData>& kinds,
@@ -311,14 +310,13 @@ int run(Config& cfg) {
   std::fprintf(o, "scene %s: %" PRIu64 " instanced / %" PRIu64 " unique triangles, %zu meshes, %zu instances (load %.2f s)\n",
                cfg.scene_path.c_str(), scene.instanced_triangles(), scene.unique_triangles(), scene.meshes.size(),
                scene.instances.size(), load_s);
-  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n", cpu.c_str(),
-               isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
+  std::fprintf(o, "cpu %s; isa %s; %zu rays per kind, seed %" PRIu64 ", best of %d interleaved runs after a warm-up\n",
+               cpu.c_str(), isa_name(cfg.isa), cfg.rays, cfg.seed, cfg.reps);
   if (cfg.hot_rays)
     std::fprintf(o, "hot rays: each kind's first %zu rays repeated (cached data, learnt branches: the cost in instructions)\n",
                  cfg.hot_rays);
   for (const KindData& k : kinds) {
-    if (k.info.fallback)
-      std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
+    if (k.info.fallback) std::fprintf(o, "note: %s: %zu rays: %s\n", ray_kind_name(k.kind), k.info.fallback, k.info.note.c_str());
     if (k.embree_timed_failures)
       std::fprintf(o, "note: %s: Embree's timed %s path disagrees with its own robust stream answers on %" PRIu64 " rays\n",
                    ray_kind_name(k.kind), k.kind == RayKind::kPrimary ? "packet" : "stream", k.embree_timed_failures);
@@ -371,9 +369,10 @@ int run(Config& cfg) {
     for (const BvhStatsRow& r : sah_rows) out.push_back(sah_record_json(r, cfg.scene_path));
     // Agreement failures (exit 5): the records, then one record carrying the `error` object (docs/json.md).
     if (failures)
-      out.push_back({{"type", "error"},
-                     {"error", rtp::tools::error_json("rtpack-bench", cfg.scene_path, ExitCode::kInternal,
-                                                      "rtpack disagrees with Embree on " + std::to_string(failures) + " rays")["error"]}});
+      out.push_back(
+          {{"type", "error"},
+           {"error", rtp::tools::error_json("rtpack-bench", cfg.scene_path, ExitCode::kInternal,
+                                            "rtpack disagrees with Embree on " + std::to_string(failures) + " rays")["error"]}});
     for (auto& rec : out) rec.update(rtp::tools::json_stamp("rtpack-bench"));
     std::cout << out.dump(1) << "\n";
   }
@@ -391,8 +390,8 @@ int run(Config& cfg) {
                  failures);
     for (const Record& r : records)
       if (!r.agreement.first_failure.empty()) {
-        std::fprintf(o, "first failure (%s W=%d %s T=%d):\n%s", ray_kind_name(r.kind), r.width, order_name(r.order),
-                     r.threads, r.agreement.first_failure.c_str());
+        std::fprintf(o, "first failure (%s W=%d %s T=%d):\n%s", ray_kind_name(r.kind), r.width, order_name(r.order), r.threads,
+                     r.agreement.first_failure.c_str());
         break;
       }
     return int(ExitCode::kInternal);
@@ -412,8 +411,10 @@ int main(int argc, char** argv) {
   app.add_option("scene", cfg.scene_path, "input .gltf or .glb")->required();
   app.add_option("--allow-path", cfg.allow_paths,
                  "also read external buffers from DIR (repeatable; default: only inside the glTF's directory)");
-  app.add_option("--rays", cfg.rays, "rays per kind (default 65536; 524288 with --all)")->check(CLI::Range(size_t(1), size_t(1) << 30));
-  app.add_option("--kinds", kinds, "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
+  app.add_option("--rays", cfg.rays, "rays per kind (default 65536; 524288 with --all)")
+      ->check(CLI::Range(size_t(1), size_t(1) << 30));
+  app.add_option("--kinds", kinds,
+                 "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
   app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default 8)");
   app.add_option("--threads", threads, "thread count or all (1, 2, 4, ... up to the hardware threads; default all)");
   app.add_option("--order", order, "traversal order: octant, active or all (default octant)");
@@ -444,19 +445,24 @@ int main(int argc, char** argv) {
   app.add_option("--convert-output", conv.output, "--convert: keep the package here (default: a temporary file, deleted)")
       ->needs(convert_flag);
   app.add_option("--bvh-width", conv.bvh_width, "--convert: BVH width W, 4, 8 or 16 (leaf width W, 8 for W=16; default 8)")
-      ->check(CLI::IsMember({4, 8, 16}))->needs(convert_flag);
+      ->check(CLI::IsMember({4, 8, 16}))
+      ->needs(convert_flag);
   app.add_option("--zstd-level", conv.zstd_level,
-                 "--convert: zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) + "..-1 zstd's fast levels (default " +
-                     std::to_string(rtp::kDefaultZstdLevel) + ")")
-      ->check(CLI::Range(rtp::kMinZstdLevel, 22))->needs(convert_flag);
+                 "--convert: zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) +
+                     "..-1 zstd's fast levels (default " + std::to_string(rtp::kDefaultZstdLevel) + ")")
+      ->check(CLI::Range(rtp::kMinZstdLevel, 22))
+      ->needs(convert_flag);
   app.add_flag("--zstd-huffman-literals{false}", conv.zstd_raw_literals,
                "--convert: Huffman-code zstd's literals in batching points and mesh segments too (as rtpack-convert)")
       ->needs(convert_flag);
   app.add_option("--zstd-leaf-min-match", conv.zstd_leaf_min_match,
-                 "--convert: zstd's shortest match in batching points and mesh segments, 3..7 or 0 for the level's own (as rtpack-convert)")
-      ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}))->needs(convert_flag);
+                 "--convert: zstd's shortest match in batching points and mesh segments, 3..7 or 0 for the level's own (as "
+                 "rtpack-convert)")
+      ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}))
+      ->needs(convert_flag);
   app.add_option("--chunk-target", conv.chunk_target, "--convert: triangles per batching point (default: derived)")
-      ->check(rtp::tools::chunk_target_range())->needs(convert_flag);
+      ->check(rtp::tools::chunk_target_range())
+      ->needs(convert_flag);
   app.add_flag("--no-dag{false}", conv.dag,
                "--convert: store no culling DAGs (as rtpack-convert --no-dag): beside a default run, what the DAGs cost")
       ->needs(convert_flag);
@@ -473,12 +479,21 @@ int main(int argc, char** argv) {
   dag_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(hot_opt);
   bench::MultiHitBenchConfig multi;
   bench::add_multi_hit_options(app, multi)
-      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt)
+      ->excludes(convert_flag)
+      ->excludes(build_stats)
+      ->excludes(all_flag)
+      ->excludes(ooc_opt)
+      ->excludes(dag_opt)
       ->excludes(hot_opt);
   bench::PacketBenchConfig packets;
   bench::add_packet_options(app, packets)
-      ->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(ooc_opt)->excludes(dag_opt)
-      ->excludes("--multi-hit")->excludes(hot_opt);
+      ->excludes(convert_flag)
+      ->excludes(build_stats)
+      ->excludes(all_flag)
+      ->excludes(ooc_opt)
+      ->excludes(dag_opt)
+      ->excludes("--multi-hit")
+      ->excludes(hot_opt);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -500,9 +515,12 @@ int main(int argc, char** argv) {
   if (cfg.kinds.empty()) return usage("--kinds is empty");
   if (cfg.hot_rays > cfg.rays)
     return usage("--hot-rays " + std::to_string(cfg.hot_rays) + " is more than --rays " + std::to_string(cfg.rays));
-  if (width == "all") cfg.widths = {4, 8, 16};
-  else if (width == "4" || width == "8" || width == "16") cfg.widths = {std::stoi(width)};
-  else return usage("--width must be 4, 8, 16 or all, not '" + width + "'");
+  if (width == "all")
+    cfg.widths = {4, 8, 16};
+  else if (width == "4" || width == "8" || width == "16")
+    cfg.widths = {std::stoi(width)};
+  else
+    return usage("--width must be 4, 8, 16 or all, not '" + width + "'");
   const int hw = std::max(1, tbb::info::default_concurrency());
   if (threads == "all") {
     for (int t = 1; t < hw; t *= 2) cfg.threads.push_back(t);
@@ -513,16 +531,25 @@ int main(int argc, char** argv) {
     if (threads.empty() || *end != '\0' || t < 1 || t > 64) return usage("--threads must be 1..64 or all, not '" + threads + "'");
     cfg.threads = {int(t)};
   }
-  if (order == "all") cfg.orders = {TraversalOrder::kOctantStack, TraversalOrder::kActiveList};
-  else if (order == "octant") cfg.orders = {TraversalOrder::kOctantStack};
-  else if (order == "active") cfg.orders = {TraversalOrder::kActiveList};
-  else return usage("--order must be octant, active or all, not '" + order + "'");
+  if (order == "all")
+    cfg.orders = {TraversalOrder::kOctantStack, TraversalOrder::kActiveList};
+  else if (order == "octant")
+    cfg.orders = {TraversalOrder::kOctantStack};
+  else if (order == "active")
+    cfg.orders = {TraversalOrder::kActiveList};
+  else
+    return usage("--order must be octant, active or all, not '" + order + "'");
   const Isa best = detect_isa();
-  if (isa == "best") cfg.isa = best;
-  else if (isa == "scalar") cfg.isa = Isa::kScalar;
-  else if (isa == "avx2") cfg.isa = Isa::kAvx2;
-  else if (isa == "avx512") cfg.isa = Isa::kAvx512;
-  else return usage("--isa must be best, scalar, avx2 or avx512, not '" + isa + "'");
+  if (isa == "best")
+    cfg.isa = best;
+  else if (isa == "scalar")
+    cfg.isa = Isa::kScalar;
+  else if (isa == "avx2")
+    cfg.isa = Isa::kAvx2;
+  else if (isa == "avx512")
+    cfg.isa = Isa::kAvx512;
+  else
+    return usage("--isa must be best, scalar, avx2 or avx512, not '" + isa + "'");
   if (int(cfg.isa) > int(best)) return usage(std::string("this CPU does not support ") + isa + " (best: " + isa_name(best) + ")");
   g_progress = isatty(2) != 0;
   try {
@@ -579,6 +606,7 @@ int main(int argc, char** argv) {
     return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
     progress_done();
-    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal,
+                                    std::string("internal error: ") + e.what());
   }
 }

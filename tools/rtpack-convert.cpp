@@ -50,11 +50,13 @@ int main(int argc, char** argv) {
                "also analyse each mesh's half-edge topology with OpenMesh (faces it refuses, non-manifold vertices; "
                "report only, about an eighth of a convert's time)");
   app.add_flag("--json", json, "print the summary as JSON on stdout");
-  app.add_option("--scene", scene_index, "glTF scene index (default: the file's default scene)")->check(rtp::tools::non_negative());
+  app.add_option("--scene", scene_index, "glTF scene index (default: the file's default scene)")
+      ->check(rtp::tools::non_negative());
   app.add_option("--weld", weld, "weld vertices closer than EPS (L-inf, local units)")->check(rtp::tools::non_negative());
   auto* sub = app.add_option("--subdivide", subdivide, "uniform Loop subdivision levels")->check(CLI::Range(0, 8));
   app.add_option("--subdivide-to", subdivide_to, "refine each mesh until its longest world-space edge is below LENGTH")
-      ->check(rtp::tools::positive())->excludes(sub);
+      ->check(rtp::tools::positive())
+      ->excludes(sub);
   app.add_option("--bvh-width", width, "BVH width W: 4, 8 or 16 (default 8)")->check(CLI::IsMember({4, 8, 16}));
   app.add_option("--leaf-width", leaf_width, "triangles per leaf block B: 4, 8 or 16 (default W, 8 for W=16)")
       ->check(CLI::IsMember({4, 8, 16}));
@@ -68,10 +70,11 @@ int main(int argc, char** argv) {
                  "vertex attributes to store as separate per-chunk streams: normal, uv (comma-separated; default none)")
       ->delimiter(',')
       ->check(CLI::IsMember({"normal", "uv"}));
-  app.add_option("--zstd-level", zstd_level,
-                 "zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) + "..-1 zstd's fast levels (default " +
-                     std::to_string(rtp::kDefaultZstdLevel) +
-                     "; 6: 11-12 % smaller, chunks stage 1.5-1.7x slower; 19: 20-22 % smaller, 12-28x slower; docs/package/zstd.md)")
+  app.add_option(
+         "--zstd-level", zstd_level,
+         "zstd level per chunk, 0 = store, " + std::to_string(rtp::kMinZstdLevel) + "..-1 zstd's fast levels (default " +
+             std::to_string(rtp::kDefaultZstdLevel) +
+             "; 6: 11-12 % smaller, chunks stage 1.5-1.7x slower; 19: 20-22 % smaller, 12-28x slower; docs/package/zstd.md)")
       ->check(CLI::Range(rtp::kMinZstdLevel, 22));
   bool huffman_literals = false;
   app.add_flag("--zstd-huffman-literals", huffman_literals,
@@ -79,9 +82,12 @@ int main(int argc, char** argv) {
                "decompressed about 1.4x faster when tracing out of core; docs/trace/budget.md)");
   int leaf_min_match = rtp::kDefaultLeafMinMatch;
   app.add_option("--zstd-leaf-min-match", leaf_min_match,
-                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (level 3: 5; level 2: 5 or 6 by chunk size) "
-                 "(default " + std::to_string(rtp::kDefaultLeafMinMatch) + ": about 16 % larger there than 0, decompressed about 1.5x "
-                 "faster when tracing out of core; docs/package/zstd.md)")
+                 "zstd's shortest match in batching points and mesh segments, 3..7, or 0 for the level's own (level 3: 5; level "
+                 "2: 5 or 6 by chunk size) "
+                 "(default " +
+                     std::to_string(rtp::kDefaultLeafMinMatch) +
+                     ": about 16 % larger there than 0, decompressed about 1.5x "
+                     "faster when tracing out of core; docs/package/zstd.md)")
       ->check(CLI::IsMember({0, 3, 4, 5, 6, 7}));
   app.add_option("--threads", threads, "worker threads (default: all cores); the output is identical for any value")
       ->check(rtp::tools::positive());
@@ -96,8 +102,7 @@ int main(int argc, char** argv) {
         try {
           const unsigned long v = std::stoul(s);
           if (v >= 4 && v <= 1024 && (v & (v - 1)) == 0) return std::string();
-        } catch (...) {
-        }
+        } catch (...) {}
         return std::string("must be a power of two from 4 to 1024");
       });
   app.add_flag("-q,--quiet", quiet, "no warnings or progress on stderr");
@@ -181,35 +186,42 @@ int main(int argc, char** argv) {
     const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
     nlohmann::json sections = nlohmann::json::object();
     for (const auto& [kind, s] : rep.by_kind)
-      sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks}, {"raw_bytes", s.raw}, {"stored_bytes", s.stored},
-                        {"bytes_per_unique_triangle", double(s.stored) / tris}};
-    nlohmann::json j = {{"input", rtp::utf8_display(input)},
-                        {"output", rtp::utf8_display(output)},
-                        {"input_bytes", inf.read_bytes()},
-                        {"input_files", {{"gltf_bytes", inf.gltf_bytes}, {"buffer_bytes", inf.buffer_bytes},
-                                         {"buffer_files", inf.buffer_files}, {"images_not_read", inf.images},
-                                         {"image_file_bytes_not_read", inf.image_file_bytes}}},
-                        {"package_bytes", rep.package_bytes},
-                        {"chunks", rep.chunks},
-                        {"batching_points", plan.points.size()},
-                        {"mesh_segments", plan.segments.size()},
-                        {"chunk_target", plan.chunk_target},
-                        {"unique_triangles", scene.unique_triangles()},
-                        {"instanced_triangles", scene.instanced_triangles()},
-                        {"instances", scene.instances.size()},
-                        {"bytes_per_unique_triangle", double(rep.package_bytes) / tris},
-                        {"bytes_per_instance", per_instance},
-                        {"sections", sections},
-                        {"dag", nlohmann::json::object()},
-                        {"seconds", {{"import", t_import}, {"prepare", t_prepare}, {"plan", t_plan},
-                                     {"chunks", t_chunks}, {"total", done.total_seconds()}}},
-                        {"peak_rss_mib", rtp::peak_rss_mib()}};
+      sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks},
+                                              {"raw_bytes", s.raw},
+                                              {"stored_bytes", s.stored},
+                                              {"bytes_per_unique_triangle", double(s.stored) / tris}};
+    nlohmann::json j = {
+        {"input", rtp::utf8_display(input)},
+        {"output", rtp::utf8_display(output)},
+        {"input_bytes", inf.read_bytes()},
+        {"input_files",
+         {{"gltf_bytes", inf.gltf_bytes},
+          {"buffer_bytes", inf.buffer_bytes},
+          {"buffer_files", inf.buffer_files},
+          {"images_not_read", inf.images},
+          {"image_file_bytes_not_read", inf.image_file_bytes}}},
+        {"package_bytes", rep.package_bytes},
+        {"chunks", rep.chunks},
+        {"batching_points", plan.points.size()},
+        {"mesh_segments", plan.segments.size()},
+        {"chunk_target", plan.chunk_target},
+        {"unique_triangles", scene.unique_triangles()},
+        {"instanced_triangles", scene.instanced_triangles()},
+        {"instances", scene.instances.size()},
+        {"bytes_per_unique_triangle", double(rep.package_bytes) / tris},
+        {"bytes_per_instance", per_instance},
+        {"sections", sections},
+        {"dag", nlohmann::json::object()},
+        {"seconds",
+         {{"import", t_import}, {"prepare", t_prepare}, {"plan", t_plan}, {"chunks", t_chunks}, {"total", done.total_seconds()}}},
+        {"peak_rss_mib", rtp::peak_rss_mib()}};
     if (!no_dag) {
       nlohmann::json hist = nlohmann::json::object();
       for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
-      j["dag"] = {{"pool_bytes", rep.dag_pool_bytes}, {"separate_bytes", rep.dag_separate_bytes},
-                  {"set_cells", rep.dag_set_cells}, {"resolutions", hist}, {"voxelize_seconds", rep.voxelize_seconds},
-                  {"box_points", rep.box_points}, {"box_node_bytes", rep.box_node_bytes}};
+      j["dag"] = {{"pool_bytes", rep.dag_pool_bytes},         {"separate_bytes", rep.dag_separate_bytes},
+                  {"set_cells", rep.dag_set_cells},           {"resolutions", hist},
+                  {"voxelize_seconds", rep.voxelize_seconds}, {"box_points", rep.box_points},
+                  {"box_node_bytes", rep.box_node_bytes}};
     }
     j.update(rtp::tools::json_stamp("rtpack-convert"));
     if (json) {
@@ -238,7 +250,8 @@ int main(int argc, char** argv) {
                     human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
       if (!no_dag) {
         std::string res;
-        for (const auto& [r, n] : rep.dag_resolutions) res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
+        for (const auto& [r, n] : rep.dag_resolutions)
+          res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
         if (rep.box_points)
           res += (res.empty() ? "" : ", ") + std::to_string(rep.box_points) + " by instance boxes (" +
                  human(double(rep.box_node_bytes)) + " of nodes)";
@@ -246,12 +259,14 @@ int main(int argc, char** argv) {
                     human(double(rep.dag_pool_bytes)).c_str(), human(double(rep.dag_separate_bytes)).c_str(),
                     (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);
       }
-      std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n",
-                  t_import, t_prepare, t_plan, t_chunks, rtp::peak_rss_mib());
+      std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n", t_import,
+                  t_prepare, t_plan, t_chunks, rtp::peak_rss_mib());
     }
     if (verbose) {  // what -v adds: each stage with the peak RSS reached by its end, and the settings
-      const std::pair<const char*, rtp::StageCost> stages[4] = {
-          {"import", done.import_cost}, {"prepare", done.prepare_cost}, {"batching points", done.plan_cost}, {"chunks", done.chunks_cost}};
+      const std::pair<const char*, rtp::StageCost> stages[4] = {{"import", done.import_cost},
+                                                                {"prepare", done.prepare_cost},
+                                                                {"batching points", done.plan_cost},
+                                                                {"chunks", done.chunks_cost}};
       for (const auto& [name, c] : stages)
         std::fprintf(stderr, "stage %-16s %8.3f s  peak RSS %7.1f MiB\n", name, c.seconds, c.peak_rss_mib);
       std::fprintf(stderr, "  of chunks: voxelize %.3f s (summed over threads)\n", rep.voxelize_seconds);
@@ -269,7 +284,8 @@ int main(int argc, char** argv) {
     return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
     progress.finish();
-    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal,
+                                    std::string("internal error: ") + e.what());
   }
   return 0;
 }

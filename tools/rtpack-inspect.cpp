@@ -71,27 +71,29 @@ void print_dag(const json& d) {
     return;
   }
   const uint64_t pool = u64(d["pool_bytes"]), points = u64(d["grids"]);
-  std::printf("\nculling DAGs    pool %s (%s bytes): %s nodes in %s words, %s leaves; %s per batching point\n", human(double(pool)).c_str(),
-              group(pool).c_str(), group(u64(d["nodes"])).c_str(), group(u64(d["node_words"])).c_str(),
-              group(u64(d["leaves"])).c_str(), human(points ? double(pool) / double(points) : 0.0).c_str());
+  std::printf("\nculling DAGs    pool %s (%s bytes): %s nodes in %s words, %s leaves; %s per batching point\n",
+              human(double(pool)).c_str(), group(pool).c_str(), group(u64(d["nodes"])).c_str(),
+              group(u64(d["node_words"])).c_str(), group(u64(d["leaves"])).c_str(),
+              human(points ? double(pool) / double(points) : 0.0).c_str());
   std::vector<std::pair<uint64_t, uint64_t>> by_res;  // {"128": points, ...} -> finest first
   for (const auto& [r, n] : d["resolutions"].items()) by_res.emplace_back(std::stoull(r), u64(n));
   std::sort(by_res.rbegin(), by_res.rend());
   std::string res;
   for (const auto& [r, n] : by_res) res += (res.empty() ? "" : ", ") + group(n) + " at " + std::to_string(r) + "^3";
-  std::printf("  resolutions   %s (%s grid%s, %s in the descriptors chunk)\n", res.empty() ? "-" : res.c_str(), group(points).c_str(),
-              points == 1 ? "" : "s", human(double(u64(d["grid_bytes"]))).c_str());
+  std::printf("  resolutions   %s (%s grid%s, %s in the descriptors chunk)\n", res.empty() ? "-" : res.c_str(),
+              group(points).c_str(), points == 1 ? "" : "s", human(double(u64(d["grid_bytes"]))).c_str());
   if (const uint64_t boxes = d.value("box_points", uint64_t(0)))
     std::printf("  instance boxes %s point%s culled by their instance BVH with 8-bit boxes (%s of nodes)\n", group(boxes).c_str(),
                 boxes == 1 ? "" : "s", human(double(d.value("box_node_bytes", uint64_t(0)))).c_str());
   const uint64_t sep = u64(d["separate_bytes"]);
-  std::printf("  sharing       %s built alone per point -> %s shared pool: %sx", human(double(sep)).c_str(), human(double(pool)).c_str(),
-              num(d["sharing"], "%.2f").c_str());
+  std::printf("  sharing       %s built alone per point -> %s shared pool: %sx", human(double(sep)).c_str(),
+              human(double(pool)).c_str(), num(d["sharing"], "%.2f").c_str());
   if (sep) std::printf(" (%.1f%% saved)", 100.0 * (1.0 - double(pool) / double(sep)));
   std::printf("\n");
   const uint64_t cells = u64(d["cells"]), set = u64(d["set_cells"]);
   std::printf("  set cells     %s of %s (%.2f%%); %s empty, %s full roots\n", group(set).c_str(), group(cells).c_str(),
-              cells ? 100.0 * double(set) / double(cells) : 0.0, group(u64(d["empty_roots"])).c_str(), group(u64(d["full_roots"])).c_str());
+              cells ? 100.0 * double(set) / double(cells) : 0.0, group(u64(d["empty_roots"])).c_str(),
+              group(u64(d["full_roots"])).c_str());
   if (u64(d["malformed_grids"]) || u64(d["unchecked_grids"]))
     std::printf("  not counted   %s malformed grids, %s without a readable pool\n", group(u64(d["malformed_grids"])).c_str(),
                 group(u64(d["unchecked_grids"])).c_str());
@@ -108,49 +110,56 @@ void print_text(const std::string& path, const json& j) {
               (unsigned long long)u64(h["bvh_width"]), (unsigned long long)u64(h["leaf_width"]));
   std::string attrs;
   for (const auto& a : h["attributes"]) attrs += (attrs.empty() ? "" : ", ") + a.get<std::string>();
-  std::printf("  attributes    %s\n", attrs.empty() ? "none (positions and ids only)" : (attrs + " (separate per-chunk streams)").c_str());
+  std::printf("  attributes    %s\n",
+              attrs.empty() ? "none (positions and ids only)" : (attrs + " (separate per-chunk streams)").c_str());
   std::printf("  triangles     %s unique, %s instanced; %s meshes, %s instances\n", group(u64(h["unique_triangles"])).c_str(),
               group(u64(h["instanced_triangles"])).c_str(), group(u64(j["meshes"])).c_str(), group(u64(j["instances"])).c_str());
   const json& b = h["bounds"];
-  std::printf("  bounds        min (%s, %s, %s)  max (%s, %s, %s)\n", num(b["min"][0], "%g").c_str(), num(b["min"][1], "%g").c_str(),
-              num(b["min"][2], "%g").c_str(), num(b["max"][0], "%g").c_str(), num(b["max"][1], "%g").c_str(),
-              num(b["max"][2], "%g").c_str());
+  std::printf("  bounds        min (%s, %s, %s)  max (%s, %s, %s)\n", num(b["min"][0], "%g").c_str(),
+              num(b["min"][1], "%g").c_str(), num(b["min"][2], "%g").c_str(), num(b["max"][0], "%g").c_str(),
+              num(b["max"][1], "%g").c_str(), num(b["max"][2], "%g").c_str());
   const json& m = j["metadata"];
   if (m.is_object()) {
     auto s = [&m](const char* k) { return m.contains(k) ? (m[k].is_string() ? m[k].get<std::string>() : m[k].dump()) : "-"; };
     std::printf("  source        %s (%s)\n", s("source").c_str(), s("tool_version").c_str());
-    std::printf("  build         %s BVH, chunk target %s triangles (counting %s)\n", s("bvh_build").c_str(), s("chunk_target").c_str(),
-                s("chunk_by").c_str());
+    std::printf("  build         %s BVH, chunk target %s triangles (counting %s)\n", s("bvh_build").c_str(),
+                s("chunk_target").c_str(), s("chunk_by").c_str());
     if (m.contains("options")) std::printf("  options       %s\n", m["options"].dump().c_str());
     std::printf("  cameras       %zu\n", m["cameras"].size());
     for (const auto& c : m["cameras"]) {
-      std::string pos = c.contains("position") ? " at (" + num(c["position"][0], "%g") + ", " + num(c["position"][1], "%g") + ", " +
-                                                     num(c["position"][2], "%g") + ")"
+      std::string pos = c.contains("position") ? " at (" + num(c["position"][0], "%g") + ", " + num(c["position"][1], "%g") +
+                                                     ", " + num(c["position"][2], "%g") + ")"
                                                : "";
-      std::string lens = c.contains("yfov") ? ", yfov " + num(c["yfov"], "%.4g") : (c.contains("ymag") ? ", ymag " + num(c["ymag"], "%g") : "");
+      std::string lens =
+          c.contains("yfov") ? ", yfov " + num(c["yfov"], "%.4g") : (c.contains("ymag") ? ", ymag " + num(c["ymag"], "%g") : "");
       std::printf("    %-24s %s%s%s\n", c["name"].get<std::string>().c_str(), c["type"].get<std::string>().c_str(), lens.c_str(),
                   pos.c_str());
     }
   }
 
-  std::printf("\nchunk sizes (B/tri: bytes per unique triangle)      chunks          raw       stored   ratio   raw B/tri  stored B/tri\n");
+  std::printf(
+      "\nchunk sizes (B/tri: bytes per unique triangle)      chunks          raw       stored   ratio   raw B/tri  stored "
+      "B/tri\n");
   auto size_row = [](const std::string& name, const json& r) {
     std::printf("  %-46s %6s %12s %12s %7.2f %11.2f %13.2f\n", name.c_str(), group(u64(r["chunks"])).c_str(),
-                human(double(u64(r["raw_bytes"]))).c_str(), human(double(u64(r["stored_bytes"]))).c_str(), r["ratio"].get<double>(),
-                r["raw_bytes_per_unique_triangle"].get<double>(), r["stored_bytes_per_unique_triangle"].get<double>());
+                human(double(u64(r["raw_bytes"]))).c_str(), human(double(u64(r["stored_bytes"]))).c_str(),
+                r["ratio"].get<double>(), r["raw_bytes_per_unique_triangle"].get<double>(),
+                r["stored_bytes_per_unique_triangle"].get<double>());
   };
-  for (const auto& k : j["sizes"]["by_kind"]) size_row(k["name"].get<std::string>() + " (" + k["residency"].get<std::string>() + ")", k);
+  for (const auto& k : j["sizes"]["by_kind"])
+    size_row(k["name"].get<std::string>() + " (" + k["residency"].get<std::string>() + ")", k);
   size_row("all resident", j["sizes"]["resident"]);
   size_row("all on demand", j["sizes"]["on_demand"]);
   const json& z = j["sizes"];
-  std::printf("  header block %s, table of contents %s, alignment padding %s\n", human(double(u64(z["header_block_bytes"]))).c_str(),
-              human(double(u64(z["toc_bytes"]))).c_str(), human(double(u64(z["alignment_padding_bytes"]))).c_str());
+  std::printf("  header block %s, table of contents %s, alignment padding %s\n",
+              human(double(u64(z["header_block_bytes"]))).c_str(), human(double(u64(z["toc_bytes"]))).c_str(),
+              human(double(u64(z["alignment_padding_bytes"]))).c_str());
   std::printf("  whole file: %.2f bytes per unique triangle\n", j["bytes_per_unique_triangle"].get<double>());
 
   const json& p = j["batching_points"];
-  std::printf("\nbatching points %s (%s pieces, %s instances; %s unique + %s instanced triangles)\n", group(u64(p["count"])).c_str(),
-              group(u64(p["pieces"])).c_str(), group(u64(p["instances"])).c_str(), group(u64(p["unique_triangles"])).c_str(),
-              group(u64(p["instanced_triangles"])).c_str());
+  std::printf("\nbatching points %s (%s pieces, %s instances; %s unique + %s instanced triangles)\n",
+              group(u64(p["count"])).c_str(), group(u64(p["pieces"])).c_str(), group(u64(p["instances"])).c_str(),
+              group(u64(p["unique_triangles"])).c_str(), group(u64(p["instanced_triangles"])).c_str());
   std::printf("  triangles per point    %s   (min / mean / max)\n", spread(p["triangles"]).c_str());
   std::printf("  stored bytes           %s\n", spread(p["stored_bytes"], true).c_str());
   std::printf("  pieces per point       %s\n", spread(p["pieces_per_point"]).c_str());
@@ -160,7 +169,8 @@ void print_text(const std::string& path, const json& j) {
   histogram("instances per point", p["instances_histogram"], false);
 
   const json& s = j["mesh_segments"];
-  std::printf("\nmesh segments   %s (%s triangles of instanced meshes)\n", group(u64(s["count"])).c_str(), group(u64(s["triangles"])).c_str());
+  std::printf("\nmesh segments   %s (%s triangles of instanced meshes)\n", group(u64(s["count"])).c_str(),
+              group(u64(s["triangles"])).c_str());
   if (u64(s["count"])) {
     std::printf("  meshes per segment     %s   (min / mean / max)\n", spread(s["meshes_per_segment"]).c_str());
     std::printf("  triangles per segment  %s\n", spread(s["triangles_per_segment"]).c_str());
@@ -183,8 +193,9 @@ void print_text(const std::string& path, const json& j) {
               group(u64(j["top_level"]["max_depth"])).c_str());
 
   if (j.contains("chunks")) {
-    std::printf("\nchunks (triangles: unique + instanced; BVH columns: mean over the chunk's mesh/piece BVHs, depth: max;\n"
-                "        inst cb / inst ct: c_box / c_tri of a batching point's instance BVH)\n");
+    std::printf(
+        "\nchunks (triangles: unique + instanced; BVH columns: mean over the chunk's mesh/piece BVHs, depth: max;\n"
+        "        inst cb / inst ct: c_box / c_tri of a batching point's instance BVH)\n");
     std::printf("  %5s %-26s %6s %10s %10s %10s %6s %10s %6s %6s %7s %7s %6s %5s %5s %7s %7s\n", "#", "kind", "id", "offset",
                 "stored", "raw", "ratio", "triangles", "BVHs", "inst", "c_box", "c_tri", "branch", "fill", "depth", "inst cb",
                 "inst ct");
@@ -201,9 +212,11 @@ void print_text(const std::string& path, const json& j) {
                     group(u64(c["index"])).c_str(), c["kind"].get<std::string>().c_str(), group(u64(c["id"])).c_str(),
                     group(u64(c["offset"])).c_str(), human(double(u64(c["stored_bytes"]))).c_str(),
                     human(double(u64(c["raw_bytes"]))).c_str(), c["ratio"].get<double>(), count(has_bvh, tris).c_str(),
-                    count(has_bvh, has_bvh ? u64(g["bvhs"]) : 0).c_str(), count(c.contains("instances"), u64(c.value("instances", json(0)))).c_str(),
-                    mean("c_box").c_str(), mean("c_tri").c_str(), mean("branching").c_str(), mean("leaf_fill").c_str(),
-                    has_bvh ? num(g["max_depth"]["max"], "%.0f").c_str() : "", ib.contains("c_box") ? num(ib["c_box"], "%.2f").c_str() : "",
+                    count(has_bvh, has_bvh ? u64(g["bvhs"]) : 0).c_str(),
+                    count(c.contains("instances"), u64(c.value("instances", json(0)))).c_str(), mean("c_box").c_str(),
+                    mean("c_tri").c_str(), mean("branching").c_str(), mean("leaf_fill").c_str(),
+                    has_bvh ? num(g["max_depth"]["max"], "%.0f").c_str() : "",
+                    ib.contains("c_box") ? num(ib["c_box"], "%.2f").c_str() : "",
                     ib.contains("c_tri") ? num(ib["c_tri"], "%.2f").c_str() : "");
       std::string row = line;
       row.erase(row.find_last_not_of(' ') + 1);
@@ -218,7 +231,8 @@ void print_problems(const json& j, size_t shown) {
     if (j["verified"].get<bool>()) std::printf("\nverify: OK (checksums, decompression and every invariant)\n");
     return;
   }
-  std::printf("\n%s: %s problem%s\n", j["verified"].get<bool>() ? "verify: FAILED" : "problems", group(n).c_str(), n == 1 ? "" : "s");
+  std::printf("\n%s: %s problem%s\n", j["verified"].get<bool>() ? "verify: FAILED" : "problems", group(n).c_str(),
+              n == 1 ? "" : "s");
   for (const auto& msg : j["problems"]["listed"]) std::printf("  %s\n", msg.get<std::string>().c_str());
   if (n > shown) std::printf("  ... and %s more\n", group(n - shown).c_str());
 }
@@ -271,7 +285,8 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal,
+                                    std::string("internal error: ") + e.what());
   }
   return 0;
 }

@@ -55,14 +55,14 @@
 
 namespace {
 
-using rtp::tools::SourceMesh;
+using nlohmann::json;
+using rtp::Error;
+using rtp::ExitCode;
 using rtp::tools::compute_bounds;
 using rtp::tools::load_sources;
 using rtp::tools::refine_once;
 using rtp::tools::resolve_default;
-using nlohmann::json;
-using rtp::Error;
-using rtp::ExitCode;
+using rtp::tools::SourceMesh;
 namespace fs = std::filesystem;
 
 constexpr double kPi = 3.14159265358979323846;
@@ -85,7 +85,7 @@ struct Options {
   int64_t count = -1;  // -1: 12 for gallery content, 3000 for forest content
   uint64_t seed = 1;
   double spacing = 2.0;
-  int refine = -1;     // -1: 1 for forest content, 0 otherwise
+  int refine = -1;  // -1: 1 for forest content, 0 otherwise
   std::vector<std::string> meshes, allow_paths;
   bool unique = false;  // forest: every instance its own perturbed mesh (no GPU instancing)
   bool forest_content() const { return kind == "forest" || (kind == "far" && base == "forest"); }
@@ -127,15 +127,11 @@ class GlbBuilder {
     return bin_.size();
   }
   // Ends the view started at `begin`, adds one accessor over it, returns the accessor index.
-  int end_accessor(size_t begin, int target, int component, size_t count, const char* type,
-                   bool normalized = false) {
+  int end_accessor(size_t begin, int target, int component, size_t count, const char* type, bool normalized = false) {
     json view = {{"buffer", 0}, {"byteOffset", begin}, {"byteLength", bin_.size() - begin}};
     if (target) view["target"] = target;
     doc["bufferViews"].push_back(std::move(view));
-    json acc = {{"bufferView", doc["bufferViews"].size() - 1},
-                {"componentType", component},
-                {"count", count},
-                {"type", type}};
+    json acc = {{"bufferView", doc["bufferViews"].size() - 1}, {"componentType", component}, {"count", count}, {"type", type}};
     if (normalized) acc["normalized"] = true;
     doc["accessors"].push_back(std::move(acc));
     return int(doc["accessors"].size() - 1);
@@ -248,10 +244,8 @@ void add_cameras(GlbBuilder& g, int parent, const rtp::Vec3d& center, double rad
        {"type", "orthographic"},
        {"orthographic", {{"xmag", radius}, {"ymag", radius}, {"znear", radius * 1e-3}, {"zfar", radius * 4}}}});
   const D3 top = {center.x, center.y + 2 * radius, center.z};
-  json node = {{"name", "camera_top"},
-               {"camera", g.doc["cameras"].size() - 1},
-               {"translation", top},
-               {"rotation", pitch_quat(-kPi / 2)}};
+  json node = {
+      {"name", "camera_top"}, {"camera", g.doc["cameras"].size() - 1}, {"translation", top}, {"rotation", pitch_quat(-kPi / 2)}};
   g.add_node(std::move(node), parent);
 }
 
@@ -287,8 +281,7 @@ Totals build_gallery(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const
   // Content bounding sphere in platform space, then mapped into root space for the cameras.
   const double w = (per_row - 1) * o.spacing + 1, d = (double(rows) - 1) * o.spacing + 1;
   const rtp::Vec3d c_platform = {0, 0.5, -(double(rows) - 1) * o.spacing / 2};
-  const rtp::Affine3x4 pm =
-      rtp::Affine3x4::from(rtp::Mat4d::from_trs(platform_t.data(), platform_q.data(), platform_s.data()));
+  const rtp::Affine3x4 pm = rtp::Affine3x4::from(rtp::Mat4d::from_trs(platform_t.data(), platform_q.data(), platform_s.data()));
   const double radius = platform_s[0] * 0.5 * std::sqrt(w * w + d * d + 1.0);
   add_cameras(g, root, pm.apply(c_platform), radius, true);
   return totals;
@@ -333,7 +326,8 @@ Totals build_unique(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const 
     const int pos = g.end_accessor(begin, kArrayBuffer, kFloat, m.positions.size(), "VEC3");
     g.doc["accessors"][size_t(pos)]["min"] = {lo.x, lo.y, lo.z};
     g.doc["accessors"][size_t(pos)]["max"] = {hi.x, hi.y, hi.z};
-    const json prim = {{"attributes", {{"POSITION", pos}}}, {"indices", g.doc["meshes"][mi]["primitives"][0]["indices"]}, {"mode", 4}};
+    const json prim = {
+        {"attributes", {{"POSITION", pos}}}, {"indices", g.doc["meshes"][mi]["primitives"][0]["indices"]}, {"mode", 4}};
     g.doc["meshes"].push_back({{"name", m.name + "_" + std::to_string(k)}, {"primitives", json::array({prim})}});
     const double n = m.norm, sc = a.s[3 * j];
     const D3 t{a.t[3 * j] * n, a.t[3 * j + 1] * n, a.t[3 * j + 2] * n};
@@ -458,10 +452,10 @@ int run(const Options& cli) {
   g.reserve(size_t(vertices * 12 + unique * (o.unique ? 8 : 12) + (forest ? uint64_t(o.count) * 40 : 0) + 4096));
   json sources = json::array();
   for (const std::string& f : files) sources.push_back(rtp::utf8_display(fs::path(f).filename().string()));
-  g.doc["asset"]["extras"] = {{"kind", o.kind},   {"base", o.kind == "far" ? o.base : o.kind},
-                              {"count", o.count}, {"seed", o.seed},
-                              {"refine", o.refine}, {"spacing", o.spacing}, {"unique", o.unique},
-                              {"sources", sources}};
+  g.doc["asset"]["extras"] = {{"kind", o.kind},     {"base", o.kind == "far" ? o.base : o.kind},
+                              {"count", o.count},   {"seed", o.seed},
+                              {"refine", o.refine}, {"spacing", o.spacing},
+                              {"unique", o.unique}, {"sources", sources}};
   for (const SourceMesh& m : meshes) add_mesh(g, m);
   const D3 offset = o.kind == "far" ? kFarOffset : D3{0, 0, 0};
   const int root = g.add_node(trs_node(o.kind + "_root", offset, {0, 0, 0, 1}, {1, 1, 1}), -1);
@@ -497,8 +491,8 @@ int main(int argc, char** argv) {
   app.add_option("--allow-path", o.allow_paths, "also read --mesh files' external buffers from DIR (repeatable)");
   app.add_option("--refine", o.refine, "1-to-4 midpoint splits of every source triangle (default: forest 1, gallery 0)")
       ->check(CLI::Range(0, 8));
-  CLI::Option* base = app.add_option("--base", o.base, "far only: gallery (default) or forest")
-                          ->check(CLI::IsMember({"gallery", "forest"}));
+  CLI::Option* base =
+      app.add_option("--base", o.base, "far only: gallery (default) or forest")->check(CLI::IsMember({"gallery", "forest"}));
   try {
     app.parse(argc, argv);
     if (base->count() > 0 && o.kind != "far") throw CLI::ValidationError("--base", "only applies to kind 'far'");

@@ -70,8 +70,9 @@ int main(int argc, char** argv) {
   int camera = -1;
   app.add_option("--image", image_path, "render the camera's primary rays to this PNG (no --rays needed)");
   app.add_option("--size", size, "image size WxH for --image (default 1280x720)");
-  app.add_option("--camera", camera, "glTF camera index for --image and --make-camera-rays (default: the first, or an "
-                                     "automatic camera framing the bounds when the package has none)")
+  app.add_option("--camera", camera,
+                 "glTF camera index for --image and --make-camera-rays (default: the first, or an "
+                 "automatic camera framing the bounds when the package has none)")
       ->check(rtp::tools::non_negative());
   app.add_option("--shade", shade_name, "--image colours: normal (default), depth or instance")
       ->check(CLI::IsMember({"normal", "depth", "instance"}));
@@ -94,8 +95,9 @@ int main(int argc, char** argv) {
                  "trace out of core: batching points and mesh segments held in a cache of this many bytes "
                  "(e.g. 256MiB, 2GB, or 10% of the package's on-demand bytes); in core without it");
   bool prefetch = false;
-  app.add_flag("--prefetch", prefetch, "with --memory-budget: read the next round's likely chunks on an I/O thread while a "
-                                       "round traces (same hits; off by default, see docs/trace/budget.md)");
+  app.add_flag("--prefetch", prefetch,
+               "with --memory-budget: read the next round's likely chunks on an I/O thread while a "
+               "round traces (same hits; off by default, see docs/trace/budget.md)");
   uint32_t speculation = rtp::kDefaultSpeculation;
   app.add_option("--speculation", speculation,
                  "with --memory-budget: queue a ray at its next N batching points at once, 1..64 (same hits; default " +
@@ -262,16 +264,15 @@ int main(int argc, char** argv) {
         }
       }
       // Written first: the hit file appears only when everything succeeded.
-      if (!shading_path.empty())
-        rtp::write_output_file(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
+      if (!shading_path.empty()) rtp::write_output_file(shading_path, shading.data(), shading.size() * sizeof(rtp::fmt::Shading));
       if (render) {
-        const rtp::image::Rgb8 img = rtp::image::shade(rays.data(), hits.data(), img_w, img_h, shade_mode,
-                                                       stored_normals ? shading.data() : nullptr);
+        const rtp::image::Rgb8 img =
+            rtp::image::shade(rays.data(), hits.data(), img_w, img_h, shade_mode, stored_normals ? shading.data() : nullptr);
         const std::vector<uint8_t> png = rtp::image::encode_png(img);
         rtp::write_output_file(image_path, png.data(), png.size());
         const char* normals = shade_mode == rtp::image::Shade::kDepth ? ""
-                              : stored_normals                         ? ", stored normals"
-                                                                       : ", normals from neighbouring hits";
+                              : stored_normals                        ? ", stored normals"
+                                                                      : ", normals from neighbouring hits";
         if (!json)
           std::fprintf(stderr, "image: %s, %dx%d, %s, shade %s%s\n", image_path.c_str(), img_w, img_h, camera_text.c_str(),
                        shade_name.c_str(), normals);
@@ -279,11 +280,16 @@ int main(int argc, char** argv) {
       if (!hits_path.empty()) rtp::write_output_file(hits_path, hits.data(), hits.size() * sizeof(rtp::fmt::Hit));
     }
     if (made_rays) made_rays->commit();
-    nlohmann::json j = {{"rays", rays.size()}, {any ? "occluded" : "hits", hit_count},
-                        {"misses", rays.size() - hit_count - invalid.load()}, {"invalid_rays", invalid.load()},
+    nlohmann::json j = {{"rays", rays.size()},
+                        {any ? "occluded" : "hits", hit_count},
+                        {"misses", rays.size() - hit_count - invalid.load()},
+                        {"invalid_rays", invalid.load()},
                         {"first_invalid_ray", first_invalid < rays.size() ? nlohmann::json(first_invalid) : nlohmann::json()},
-                        {"seconds", secs}, {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
-                        {"isa", rtp::isa_name(opt.isa)}, {"order", order}, {"direct_io", reader.direct_io()}};
+                        {"seconds", secs},
+                        {"mrays_per_s", secs > 0 ? double(rays.size()) / secs / 1e6 : 0.0},
+                        {"isa", rtp::isa_name(opt.isa)},
+                        {"order", order},
+                        {"direct_io", reader.direct_io()}};
     if (multi) j["multi_hit"] = {{"k", multi}, {"hits", multi_hits}};
     // Wu 2016 §4.2.1 SIMD utilization: active rays per packet node test over the packet size.
     const double utilization =
@@ -291,16 +297,23 @@ int main(int argc, char** argv) {
     // A ray traced at two batching points counts twice: shares are of the traced (entered, not culled) visits.
     const uint64_t traced_visits = visits.load() - culled.load();
     const double packet_share = traced_visits ? double(packet_rays.load()) / double(traced_visits) : 0.0;
-    j["packets"] = {{"size", opt.packet}, {"order", tile_order.empty() ? "as given" : "hilbert 4x4 tiles"},
-                    {"packets", packets.load()}, {"packet_ray_visits", packet_rays.load()},
-                    {"packet_visit_share", packet_share}, {"simd_utilization", utilization}};
+    j["packets"] = {{"size", opt.packet},
+                    {"order", tile_order.empty() ? "as given" : "hilbert 4x4 tiles"},
+                    {"packets", packets.load()},
+                    {"packet_ray_visits", packet_rays.load()},
+                    {"packet_visit_share", packet_share},
+                    {"simd_utilization", utilization}};
     if (render)
-      j["image"] = {{"path", rtp::utf8_display(image_path)}, {"width", img_w}, {"height", img_h}, {"camera", camera_text}, {"shade", shade_name}};
+      j["image"] = {{"path", rtp::utf8_display(image_path)},
+                    {"width", img_w},
+                    {"height", img_h},
+                    {"camera", camera_text},
+                    {"shade", shade_name}};
     // Culling (Molenaar 2019 §3.2): how many batching-point visits the DAGs saved.
     const bool has_dags = tracer->has_dags();
     const bool culling = opt.cull && has_dags;
     const double rate = visits.load() ? double(culled.load()) / double(visits.load()) : 0.0;
-    j["culling"] = culling    ? "on"
+    j["culling"] = culling     ? "on"
                    : !has_dags ? "off (package has no DAGs)"
                    : no_cull   ? "off (--no-cull)"
                                : "off (in core; --cull tests the DAGs)";
@@ -332,7 +345,8 @@ int main(int argc, char** argv) {
                           {"trace", ooc ? os.trace_seconds : secs},
                           {"total", (ooc ? 0.0 : ls.total_seconds) + secs}};
     j.update(rtp::tools::json_stamp("rtpack-trace"));
-    if (json) std::cout << j.dump(2) << "\n";
+    if (json)
+      std::cout << j.dump(2) << "\n";
     else {
       if (ooc)
         std::fprintf(stderr,
@@ -340,11 +354,11 @@ int main(int argc, char** argv) {
                      "decompressed), cache hit rate %.1f%%, %llu evictions; peak cache %.1f MiB, peak resident %.1f MiB, "
                      "peak RSS %.1f MiB; load %.3f s, walk %.3f s, trace %.3f s\n",
                      double(budget) / 1048576.0, (unsigned long long)os.rounds, (unsigned long long)os.cache.loads,
-                     (unsigned long long)os.cache.prefetched,
-                     double(os.cache.bytes_read) / 1048576.0, double(os.cache.raw_bytes_loaded) / 1048576.0,
-                     100 * os.cache.hit_rate(), (unsigned long long)os.cache.evictions,
-                     double(os.cache.peak_resident_bytes) / 1048576.0, double(os.peak_resident_bytes) / 1048576.0,
-                     rtp::peak_rss_mib(), os.load_seconds, os.walk_seconds, os.trace_seconds);
+                     (unsigned long long)os.cache.prefetched, double(os.cache.bytes_read) / 1048576.0,
+                     double(os.cache.raw_bytes_loaded) / 1048576.0, 100 * os.cache.hit_rate(),
+                     (unsigned long long)os.cache.evictions, double(os.cache.peak_resident_bytes) / 1048576.0,
+                     double(os.peak_resident_bytes) / 1048576.0, rtp::peak_rss_mib(), os.load_seconds, os.walk_seconds,
+                     os.trace_seconds);
       else
         std::fprintf(stderr, "load: %llu chunks, %.1f MiB in %.3f s (read and decompress %.3f s, structural checks %.3f s)\n",
                      (unsigned long long)ls.chunks, double(ls.raw_bytes) / 1048576.0, ls.total_seconds, ls.read_seconds,
@@ -356,15 +370,14 @@ int main(int argc, char** argv) {
                      opt.packet, tile_order.empty() ? "rays in file order" : "Hilbert-ordered 4x4 tiles",
                      (unsigned long long)packets.load(), 100 * packet_share, 100 * utilization);
       if (multi)
-        std::fprintf(stderr, "multi-hit: the %u closest hits of each ray, %llu in all (%.2f per ray that hits)\n",
-                     multi, (unsigned long long)multi_hits, hit_count ? double(multi_hits) / double(hit_count) : 0.0);
+        std::fprintf(stderr, "multi-hit: the %u closest hits of each ray, %llu in all (%.2f per ray that hits)\n", multi,
+                     (unsigned long long)multi_hits, hit_count ? double(multi_hits) / double(hit_count) : 0.0);
       std::fprintf(stderr,
                    "%zu rays: %llu %s, %llu invalid (returned as misses); %.3f s, %.2f Mrays/s (%s, %s); "
                    "batching-point visits %llu, culled %llu (%.1f%%, culling %s)\n",
-                   rays.size(), (unsigned long long)hit_count, any ? "occluded" : "hits",
-                   (unsigned long long)invalid.load(), secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str(),
-                   (unsigned long long)visits.load(), (unsigned long long)culled.load(), 100 * rate,
-                   j["culling"].get<std::string>().c_str());
+                   rays.size(), (unsigned long long)hit_count, any ? "occluded" : "hits", (unsigned long long)invalid.load(),
+                   secs, j["mrays_per_s"].get<double>(), rtp::isa_name(opt.isa), order.c_str(), (unsigned long long)visits.load(),
+                   (unsigned long long)culled.load(), 100 * rate, j["culling"].get<std::string>().c_str());
       if (first_invalid < rays.size()) {
         const rtp::fmt::Ray& r = rays[first_invalid];
         std::fprintf(stderr,
@@ -379,7 +392,8 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal,
+                                    std::string("internal error: ") + e.what());
   }
   return 0;
 }

@@ -52,12 +52,14 @@ uint64_t mix(uint64_t x) {  // splitmix64: deterministic rays, the same on every
   x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
   return x ^ (x >> 31);
 }
-double unit(uint64_t seed, uint64_t i, int k) { return double(mix(seed * 0x100000001B3ull + i * 8 + uint64_t(k)) >> 11) * 0x1.0p-53; }
+double unit(uint64_t seed, uint64_t i, int k) {
+  return double(mix(seed * 0x100000001B3ull + i * 8 + uint64_t(k)) >> 11) * 0x1.0p-53;
+}
 
 // Rays from the package alone (no --source): primary from its camera, random through its bounds, shadow
 // rays from the in-core primary hits toward a light above the bounds.
-std::vector<Ray> package_rays(const rtp::PackageReader& reader, rtp::Tracer& in_core, const std::string& kind,
-                              size_t n, uint64_t seed) {
+std::vector<Ray> package_rays(const rtp::PackageReader& reader, rtp::Tracer& in_core, const std::string& kind, size_t n,
+                              uint64_t seed) {
   const auto& h = reader.header();
   double c[3], r = 0;
   for (int k = 0; k < 3; ++k) c[k] = 0.5 * (double(h.bounds_lo[k]) + double(h.bounds_hi[k]));
@@ -121,8 +123,8 @@ rtp::Scene source_scene(const rtp::PackageReader& reader, const std::string& sou
     s.subdivide_to = opt.value("subdivide_to", 0.0);
     const int64_t scene = opt.value("scene", int64_t(-1));
     if (scene < -1 || scene > int64_t(INT32_MAX))
-      throw rtp::Error(rtp::ExitCode::kInputInvalid, label + ": metadata /options/scene: " + std::to_string(scene) +
-                                                         " is not a glTF scene index");
+      throw rtp::Error(rtp::ExitCode::kInputInvalid,
+                       label + ": metadata /options/scene: " + std::to_string(scene) + " is not a glTF scene index");
     s.scene = int(scene);
     s.attributes = opt.value("attributes", std::vector<std::string>{});
   } catch (const nlohmann::json::exception& e) {
@@ -140,10 +142,11 @@ rtp::Scene source_scene(const rtp::PackageReader& reader, const std::string& sou
   }
   const auto& h = reader.header();
   if (scene.instanced_triangles() != h.instanced_triangles || scene.unique_triangles() != h.unique_triangles)
-    throw rtp::Error(rtp::ExitCode::kUsage,
-                     "--source " + source + " is not the scene of this package: it has " + std::to_string(scene.unique_triangles()) +
-                         " unique and " + std::to_string(scene.instanced_triangles()) + " instanced triangles, the package " +
-                         std::to_string(h.unique_triangles) + " and " + std::to_string(h.instanced_triangles));
+    throw rtp::Error(rtp::ExitCode::kUsage, "--source " + source + " is not the scene of this package: it has " +
+                                                std::to_string(scene.unique_triangles()) + " unique and " +
+                                                std::to_string(scene.instanced_triangles()) +
+                                                " instanced triangles, the package " + std::to_string(h.unique_triangles) +
+                                                " and " + std::to_string(h.instanced_triangles));
   return scene;
 }
 
@@ -159,15 +162,17 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool json = false, no_cull = false;
   app.add_option("package", package, "the .rtp package")->required();
-  app.add_option("--source", source, "the glTF the package was converted from: answers are checked against Embree "
-                                     "(ROBUST) on it; without it, against the in-core tracer (byte for byte)");
+  app.add_option("--source", source,
+                 "the glTF the package was converted from: answers are checked against Embree "
+                 "(ROBUST) on it; without it, against the in-core tracer (byte for byte)");
   app.add_option("--allow-path", allow, "also read the source's external buffers from DIR (as rtpack-convert)");
   app.add_option("--rays", per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
   CLI::Option* kinds_opt =
       app.add_option("--kinds", kinds_text, "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
-  app.add_option("--memory-budget", budget_text, "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
-                                                 "a percentage of the package's on-demand bytes (default 25%, raised to the "
-                                                 "package's minimum)");
+  app.add_option("--memory-budget", budget_text,
+                 "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
+                 "a percentage of the package's on-demand bytes (default 25%, raised to the "
+                 "package's minimum)");
   app.add_option("--seed", seed, "ray seed (default 1)")->check(rtp::tools::unsigned_integer());
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
   app.add_flag("--no-cull", no_cull, "do not cull with the batching points' DAGs");
@@ -184,7 +189,8 @@ int main(int argc, char** argv) {
     const bool embree = !source.empty();
     std::vector<std::string> kinds;
     if (kinds_opt->count() > 0 && kinds_text.empty())
-      throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: empty; name at least one ray kind, or leave the option out for the default");
+      throw rtp::Error(rtp::ExitCode::kUsage,
+                       "--kinds: empty; name at least one ray kind, or leave the option out for the default");
     if (kinds_text.empty()) {
       if (embree)
         for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
@@ -319,39 +325,53 @@ int main(int argc, char** argv) {
       failures += k.closest.failures + k.any.failures;
       nlohmann::json ex = nlohmann::json::array();
       for (const rtp::RayDiff& d : k.closest.first_failures) ex.push_back({{"ray", d.index}, {"what", d.describe()}});
-      jk.push_back({{"kind", k.kind}, {"rays", k.closest.rays}, {"skipped", k.closest.skipped}, {"agree", k.closest.agree()},
-                    {"edge_ties", k.closest.edge_ties}, {"precision_ties", k.closest.precision_ties},
-                    {"reference_errors", k.closest.reference_errors}, {"failures", k.closest.failures}, {"any_hit_failures", k.any.failures}, {"first_failures", ex}});
+      jk.push_back({{"kind", k.kind},
+                    {"rays", k.closest.rays},
+                    {"skipped", k.closest.skipped},
+                    {"agree", k.closest.agree()},
+                    {"edge_ties", k.closest.edge_ties},
+                    {"precision_ties", k.closest.precision_ties},
+                    {"reference_errors", k.closest.reference_errors},
+                    {"failures", k.closest.failures},
+                    {"any_hit_failures", k.any.failures},
+                    {"first_failures", ex}});
     }
     nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
     j["package"] = rtp::utf8_display(package);
     j["reference"] = embree ? "embree" : "in_core";
     j["kinds"] = jk;
-    j["out_of_core"] = {{"memory_budget", budget}, {"minimum_budget", minimum}, {"on_demand_bytes", on_demand},
-                        {"rounds", total.rounds}, {"chunks_loaded", total.cache.loads}, {"bytes_read", total.cache.bytes_read},
-                        {"cache_hit_rate", total.cache.hit_rate()}, {"batching_point_visits", total.point_visits},
-                        {"culled_visits", total.culled_visits}, {"peak_cache_bytes", total.cache.peak_resident_bytes},
+    j["out_of_core"] = {{"memory_budget", budget},
+                        {"minimum_budget", minimum},
+                        {"on_demand_bytes", on_demand},
+                        {"rounds", total.rounds},
+                        {"chunks_loaded", total.cache.loads},
+                        {"bytes_read", total.cache.bytes_read},
+                        {"cache_hit_rate", total.cache.hit_rate()},
+                        {"batching_point_visits", total.point_visits},
+                        {"culled_visits", total.culled_visits},
+                        {"peak_cache_bytes", total.cache.peak_resident_bytes},
                         {"peak_resident_bytes", total.peak_resident_bytes},
-                        {"peak_rss_bytes", uint64_t(rtp::peak_rss_mib() * 1048576.0)}, {"seconds", total.total_seconds}};
+                        {"peak_rss_bytes", uint64_t(rtp::peak_rss_mib() * 1048576.0)},
+                        {"seconds", total.total_seconds}};
     j["failures"] = failures;
     j["ok"] = failures == 0;
     if (json) {
       std::cout << j.dump(2) << "\n";
     } else {
-      std::printf("%-8s %9s %9s %9s %10s %13s %9s %9s\n", "kind", "rays", "agree", "edge ties", "prec. ties",
-                  "Embree errors", "failures", "any-hit");
+      std::printf("%-8s %9s %9s %9s %10s %13s %9s %9s\n", "kind", "rays", "agree", "edge ties", "prec. ties", "Embree errors",
+                  "failures", "any-hit");
       for (const KindResult& k : results)
-        std::printf("%-8s %9llu %9llu %9llu %10llu %13llu %9llu %9llu\n", k.kind.c_str(),
-                    (unsigned long long)k.closest.rays, (unsigned long long)k.closest.agree(),
-                    (unsigned long long)k.closest.edge_ties, (unsigned long long)k.closest.precision_ties,
-                    (unsigned long long)k.closest.reference_errors, (unsigned long long)k.closest.failures,
-                    (unsigned long long)k.any.failures);
-      std::printf("out of core: budget %.1f MiB (minimum %.1f, on demand %.1f), %llu chunks loaded, %.1f MiB read, cache hit "
-                  "rate %.1f%%, peak cache %.1f MiB, peak resident %.1f MiB, peak RSS %.1f MiB\n",
-                  double(budget) / 1048576.0, double(minimum) / 1048576.0, double(on_demand) / 1048576.0,
-                  (unsigned long long)total.cache.loads, double(total.cache.bytes_read) / 1048576.0,
-                  100 * total.cache.hit_rate(), double(total.cache.peak_resident_bytes) / 1048576.0,
-                  double(total.peak_resident_bytes) / 1048576.0, rtp::peak_rss_mib());
+        std::printf("%-8s %9llu %9llu %9llu %10llu %13llu %9llu %9llu\n", k.kind.c_str(), (unsigned long long)k.closest.rays,
+                    (unsigned long long)k.closest.agree(), (unsigned long long)k.closest.edge_ties,
+                    (unsigned long long)k.closest.precision_ties, (unsigned long long)k.closest.reference_errors,
+                    (unsigned long long)k.closest.failures, (unsigned long long)k.any.failures);
+      std::printf(
+          "out of core: budget %.1f MiB (minimum %.1f, on demand %.1f), %llu chunks loaded, %.1f MiB read, cache hit "
+          "rate %.1f%%, peak cache %.1f MiB, peak resident %.1f MiB, peak RSS %.1f MiB\n",
+          double(budget) / 1048576.0, double(minimum) / 1048576.0, double(on_demand) / 1048576.0,
+          (unsigned long long)total.cache.loads, double(total.cache.bytes_read) / 1048576.0, 100 * total.cache.hit_rate(),
+          double(total.cache.peak_resident_bytes) / 1048576.0, double(total.peak_resident_bytes) / 1048576.0,
+          rtp::peak_rss_mib());
       for (const KindResult& k : results)
         for (const rtp::RayDiff& d : k.closest.first_failures)
           std::printf("FAIL %s ray %zu:\n%s\n", k.kind.c_str(), d.index, d.describe().c_str());
@@ -365,7 +385,8 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal, "out of memory");
   } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal, std::string("internal error: ") + e.what());
+    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal,
+                                    std::string("internal error: ") + e.what());
   }
   return 0;
 }

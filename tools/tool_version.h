@@ -15,7 +15,8 @@
 namespace rtp::tools {
 
 // Bumped when a key of any tool's --json output changes meaning or disappears (adding keys does not).
-inline constexpr int kJsonSchemaVersion = 3;  // 2: package_bytes everywhere, snake_case section keys; 3: preparation.nonmanifold_faces/_vertices null unless --topology
+inline constexpr int kJsonSchemaVersion =
+    3;  // 2: package_bytes everywhere, snake_case section keys; 3: preparation.nonmanifold_faces/_vertices null unless --topology
 
 inline std::string version_line(const char* tool) {
   return std::string(tool) + " " RTP_VERSION " (package format " + std::to_string(fmt::kVersionMajor) + "." +
@@ -31,8 +32,10 @@ inline void add_version_flag(CLI::App& app, const char* tool) {
 inline std::string json_key(const std::string& name) {
   std::string k;
   for (const char c : name) {
-    if (std::isalnum(static_cast<unsigned char>(c))) k += char(std::tolower(static_cast<unsigned char>(c)));
-    else if (!k.empty() && k.back() != '_') k += '_';
+    if (std::isalnum(static_cast<unsigned char>(c)))
+      k += char(std::tolower(static_cast<unsigned char>(c)));
+    else if (!k.empty() && k.back() != '_')
+      k += '_';
   }
   while (!k.empty() && k.back() == '_') k.pop_back();
   return k;

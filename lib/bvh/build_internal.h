@@ -66,9 +66,9 @@ static_assert(sizeof(PrimRef) == 32);
 struct BuildParams {
   uint32_t bins = 32;
   uint32_t max_depth = 64;
-  uint32_t leaf_size = 4;    // a-priori leaf: ranges of <= leaf_size primitives are leaves
-  uint32_t max_leaf = 64;    // no leaf may hold more (16 blocks of `block`, or 16 instances)
-  uint32_t block = 4;        // leaf cost granularity B: cost ⌈N/B⌉
+  uint32_t leaf_size = 4;  // a-priori leaf: ranges of <= leaf_size primitives are leaves
+  uint32_t max_leaf = 64;  // no leaf may hold more (16 blocks of `block`, or 16 instances)
+  uint32_t block = 4;      // leaf cost granularity B: cost ⌈N/B⌉
   uint32_t task_threshold = 4096;
   uint32_t parallel_threshold = 65536;
 };
@@ -104,8 +104,7 @@ struct Split {
 // `scratch` has the same length as `prims`; ranges handled concurrently must be disjoint.
 class Splitter {
  public:
-  Splitter(PrimRef* prims, PrimRef* scratch, const BuildParams& params)
-      : prims_(prims), scratch_(scratch), p_(params) {}
+  Splitter(PrimRef* prims, PrimRef* scratch, const BuildParams& params) : prims_(prims), scratch_(scratch), p_(params) {}
   const BuildParams& params() const { return p_; }
   PrimRef* prims() const { return prims_; }
 
@@ -186,8 +185,7 @@ WideTree<W> split_build(Splitter& splitter, uint32_t n);
 
 // Emits the formats/ layout of a mesh tree: nodes depth-first, leaf blocks pre-gathered from `mesh`.
 template <int W, int B>
-void emit_mesh(const WideTree<W>& tree, const PrimRef* prims, const Mesh& mesh, const std::string& label,
-               MeshBvh<W, B>& out);
+void emit_mesh(const WideTree<W>& tree, const PrimRef* prims, const Mesh& mesh, const std::string& label, MeshBvh<W, B>& out);
 
 // Emits a box tree: leaf refs index out.items, which receives the PrimRef ids.
 template <int W>
@@ -198,7 +196,6 @@ void check_options(const BuildOptions& options);
 
 // Builds the W-wide tree over prims[0, n) with the chosen method (mesh_bvh.cpp).
 template <int W>
-WideTree<W> build_wide(std::vector<PrimRef>& prims, const BuildParams& params, BuildMethod method,
-                       const std::string& label);
+WideTree<W> build_wide(std::vector<PrimRef>& prims, const BuildParams& params, BuildMethod method, const std::string& label);
 
 }  // namespace rtp::bvh

@@ -30,11 +30,11 @@ const char* method_name(BuildMethod method);  // "collapse", "split"
 
 struct BuildOptions {
   BuildMethod method = BuildMethod::kCollapse;
-  uint32_t bins = 32;        // SAH bins per axis, 2..64
-  uint32_t max_depth = 64;   // binary split depth limit; the W-wide tree is never deeper. Near the
-                             // limit the builders switch to median splits so every leaf fits.
-  uint32_t leaf_size = 0;    // a-priori leaf collapse (Benthin §4.2): a subtree with <= leaf_size
-                             // triangles becomes one leaf. 0 = W. At most 16·B (16 blocks per leaf).
+  uint32_t bins = 32;          // SAH bins per axis, 2..64
+  uint32_t max_depth = 64;     // binary split depth limit; the W-wide tree is never deeper. Near the
+                               // limit the builders switch to median splits so every leaf fits.
+  uint32_t leaf_size = 0;      // a-priori leaf collapse (Benthin §4.2): a subtree with <= leaf_size
+                               // triangles becomes one leaf. 0 = W. At most 16·B (16 blocks per leaf).
   uint32_t top_leaf_size = 1;  // the same for the instance BVH, 1..16 instances
   // In core (InCoreScene): a scene of two or more instances that share one transform, each of a mesh of
   // its own (FlightHelmet's six identity parts; mesh nodes under one root transform), is built as one
@@ -63,9 +63,9 @@ struct BuildOptions {
 struct BvhStats {
   double c_box = 0;
   double c_tri = 0;
-  double sah = 0;        // c_box + c_tri
-  double branching = 0;  // filled lanes per inner node
-  double leaf_fill = 0;  // primitives / (blocks·B)
+  double sah = 0;           // c_box + c_tri
+  double branching = 0;     // filled lanes per inner node
+  double leaf_fill = 0;     // primitives / (blocks·B)
   uint32_t max_depth = 0;   // inner nodes on the longest root-to-leaf path (0: the root is a leaf)
   uint64_t primitives = 0;  // triangles (mesh BVH) or instances (instance BVH)
   uint64_t nodes = 0;       // WideNode count

@@ -24,12 +24,10 @@
 namespace rtp::bvh {
 namespace {
 
-
 template <int W>
 class Collapser {
  public:
-  Collapser(const BinaryTree& binary, const BuildParams& params, WideTree<W>& out)
-      : bt_(binary.nodes), p_(params), out_(out) {}
+  Collapser(const BinaryTree& binary, const BuildParams& params, WideTree<W>& out) : bt_(binary.nodes), p_(params), out_(out) {}
 
   // A lane for binary node b: a leaf (its prim range as one part) or a still uncollapsed node.
   WideLane lane_of(uint32_t b) {

@@ -17,15 +17,13 @@ namespace rtp {
 
 double octant_key(const float lo[3], const float hi[3], int octant) {
   const double dx = (octant & 1) ? -1.0 : 1.0, dy = (octant & 2) ? -1.0 : 1.0, dz = (octant & 4) ? -1.0 : 1.0;
-  return ((double(lo[0]) + double(hi[0])) * dx + (double(lo[1]) + double(hi[1])) * dy) +
-         (double(lo[2]) + double(hi[2])) * dz;
+  return ((double(lo[0]) + double(hi[0])) * dx + (double(lo[1]) + double(hi[1])) * dy) + (double(lo[2]) + double(hi[2])) * dz;
 }
 
 namespace bvh {
 namespace {
 
 using fmt::ChildRef;
-
 
 // Molenaar 2019 §4.1: per ray octant, the filled lanes front to back along the octant's diagonal
 // (key ascending, ties by lane), then the empty lanes. Insertion sort: at most 16 lanes.
@@ -142,8 +140,7 @@ void emit_nodes(const WideTree<W>& tree, uint32_t cost_block, uint64_t block_siz
 }  // namespace
 
 template <int W, int B>
-void emit_mesh(const WideTree<W>& tree, const PrimRef* prims, const Mesh& mesh, const std::string& label,
-               MeshBvh<W, B>& out) {
+void emit_mesh(const WideTree<W>& tree, const PrimRef* prims, const Mesh& mesh, const std::string& label, MeshBvh<W, B>& out) {
   struct Job {
     uint32_t part, count, first_block;
   };
@@ -154,8 +151,8 @@ void emit_mesh(const WideTree<W>& tree, const PrimRef* prims, const Mesh& mesh, 
     if (n == 0 || n > ChildRef::kMaxBlocksPerLeaf)
       throw Error(ExitCode::kInternal, label + ": leaf of " + std::to_string(lane.prims) + " triangles");
     if (next_block + n - 1 > ChildRef::kMaxBlockIndex)
-      throw Error(ExitCode::kInputInvalid, label + ": more than " + std::to_string(ChildRef::kMaxBlockIndex + 1) +
-                                               " leaf blocks (split the mesh)");
+      throw Error(ExitCode::kInputInvalid,
+                  label + ": more than " + std::to_string(ChildRef::kMaxBlockIndex + 1) + " leaf blocks (split the mesh)");
     jobs.push_back({lane.ref, lane.prims, uint32_t(next_block)});
     const uint32_t ref = ChildRef::leaf(uint32_t(next_block), n);
     next_block += n;

@@ -10,9 +10,7 @@
 
 namespace rtp {
 
-const char* method_name(BuildMethod method) {
-  return method == BuildMethod::kCollapse ? "collapse" : "split";
-}
+const char* method_name(BuildMethod method) { return method == BuildMethod::kCollapse ? "collapse" : "split"; }
 
 namespace bvh {
 
@@ -25,8 +23,7 @@ void check_options(const BuildOptions& o) {
 }
 
 template <int W>
-WideTree<W> build_wide(std::vector<PrimRef>& prims, const BuildParams& params, BuildMethod method,
-                       const std::string& label) {
+WideTree<W> build_wide(std::vector<PrimRef>& prims, const BuildParams& params, BuildMethod method, const std::string& label) {
   if (prims.size() >= (size_t(1) << 31))
     throw Error(ExitCode::kInputInvalid, label + ": " + std::to_string(prims.size()) + " primitives, at most 2^31 - 1 per BVH");
   const uint32_t n = uint32_t(prims.size());
@@ -62,11 +59,12 @@ MeshBvh<W, B> build_mesh_bvh(const Mesh& mesh, const BuildOptions& options, std:
   p.task_threshold = options.task_threshold;
   p.parallel_threshold = options.parallel_threshold;
   if (p.leaf_size > p.max_leaf)
-    throw Error(ExitCode::kUsage, "BVH build options: leaf_size " + std::to_string(p.leaf_size) +
-                                      " exceeds 16 blocks of " + std::to_string(B) + " triangles");
+    throw Error(ExitCode::kUsage, "BVH build options: leaf_size " + std::to_string(p.leaf_size) + " exceeds 16 blocks of " +
+                                      std::to_string(B) + " triangles");
 
   if (mesh.indices.size() % 3 != 0)
-    throw Error(ExitCode::kInputInvalid, label + ": index count " + std::to_string(mesh.indices.size()) + " is not a multiple of 3");
+    throw Error(ExitCode::kInputInvalid,
+                label + ": index count " + std::to_string(mesh.indices.size()) + " is not a multiple of 3");
   const size_t tris = mesh.indices.size() / 3;
   if (tris >= (size_t(1) << 31))
     throw Error(ExitCode::kInputInvalid, label + ": " + std::to_string(tris) + " triangles, at most 2^31 - 1 per BVH");
@@ -108,7 +106,8 @@ MeshBvh<W, B> build_mesh_bvh(const Mesh& mesh, const BuildOptions& options, std:
   if (first_bad < tris) {
     std::string why = "a non-finite vertex";
     for (int k = 0; k < 3; ++k)
-      if (idx[3 * first_bad + size_t(k)] >= nv) why = "vertex index " + std::to_string(idx[3 * first_bad + size_t(k)]) + " out of range";
+      if (idx[3 * first_bad + size_t(k)] >= nv)
+        why = "vertex index " + std::to_string(idx[3 * first_bad + size_t(k)]) + " out of range";
     throw Error(ExitCode::kInputInvalid, label + ": triangle " + std::to_string(first_bad) + " has " + why);
   }
 
@@ -118,8 +117,7 @@ MeshBvh<W, B> build_mesh_bvh(const Mesh& mesh, const BuildOptions& options, std:
   return out;
 }
 
-#define RTP_MESH_BVH(W, B) \
-  template MeshBvh<W, B> build_mesh_bvh<W, B>(const Mesh&, const BuildOptions&, std::string_view);
+#define RTP_MESH_BVH(W, B) template MeshBvh<W, B> build_mesh_bvh<W, B>(const Mesh&, const BuildOptions&, std::string_view);
 RTP_MESH_BVH(4, 4)
 RTP_MESH_BVH(8, 8)
 RTP_MESH_BVH(16, 16)

@@ -20,7 +20,6 @@
 namespace rtp::bvh {
 namespace {
 
-
 template <int W>
 class SplitBuilder {
  public:

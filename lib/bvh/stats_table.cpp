@@ -67,8 +67,8 @@ std::vector<BvhStatsRow> bvh_stats_rows(const std::string& model, const Mesh& me
 std::string bvh_stats_table(const std::vector<BvhStatsRow>& rows) {
   std::string out;
   char line[320];
-  std::snprintf(line, sizeof line, "%-16s %9s %3s %3s %-8s %9s %9s %9s %7s %6s %6s %9s %9s %9s\n", "model", "tris", "W",
-                "B", "method", "C_box", "C_tri", "SAH", "branch", "fill", "depth", "nodes", "leaves", "bytes/tri");
+  std::snprintf(line, sizeof line, "%-16s %9s %3s %3s %-8s %9s %9s %9s %7s %6s %6s %9s %9s %9s\n", "model", "tris", "W", "B",
+                "method", "C_box", "C_tri", "SAH", "branch", "fill", "depth", "nodes", "leaves", "bytes/tri");
   out += line;
   for (const BvhStatsRow& r : rows) {
     const BvhStats& s = r.stats;

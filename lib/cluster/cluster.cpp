@@ -38,8 +38,8 @@ struct BinNode {
 Aabb instance_bounds(const Scene& s, const Instance& in, const Aabb& local) {
   Aabb b;
   for (int c = 0; c < 8; ++c)
-    b.grow(in.transform.apply({(c & 1) ? local.hi.x : local.lo.x, (c & 2) ? local.hi.y : local.lo.y,
-                               (c & 4) ? local.hi.z : local.lo.z}));
+    b.grow(in.transform.apply(
+        {(c & 1) ? local.hi.x : local.lo.x, (c & 2) ? local.hi.y : local.lo.y, (c & 4) ? local.hi.z : local.lo.z}));
   (void)s;
   return b;
 }
@@ -101,7 +101,8 @@ struct BoxWeight {
   [[gnu::always_inline]] void add(const Object& o) {
     grow_box(box, o.box);
     const Vec3d c = o.box.center();
-    for (int i = 0; i < 3; ++i) centroids.lo[i] = std::min(centroids.lo[i], c[i]), centroids.hi[i] = std::max(centroids.hi[i], c[i]);
+    for (int i = 0; i < 3; ++i)
+      centroids.lo[i] = std::min(centroids.lo[i], c[i]), centroids.hi[i] = std::max(centroids.hi[i], c[i]);
     weight += o.weight;
   }
   void join(const BoxWeight& y) {
@@ -120,7 +121,8 @@ struct BoxWeight {
 template <class P>
 size_t stable_partition_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const P& left,
                                 BoxWeight& lw, BoxWeight& rw) {
-  if (scratch.size() < objs.size()) throw Error(ExitCode::kInternal, "stable_partition_objects: scratch shorter than the objects");
+  if (scratch.size() < objs.size())
+    throw Error(ExitCode::kInternal, "stable_partition_objects: scratch shorter than the objects");
   if (e - b < kParallelObjects) {
     // Without a branch on the side (which side is data: half the objects would mispredict).
     size_t w = b, r = b;
@@ -173,8 +175,8 @@ size_t stable_partition_objects(std::vector<Object>& objs, std::vector<Object>& 
 // Molenaar 2019 §3.1 (after Embree's binned SAH): split objects[b,e) by the best of 3 axes × 16 bins
 // on centroids, cost Σ SA(child) · weight(child); median split when every centroid is equal.
 // `cb`: the bounds of the objects' centroids; lw, rw: the two sides' sums.
-size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const Aabb& cb,
-                     BoxWeight& lw, BoxWeight& rw) {
+size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, size_t b, size_t e, const Aabb& cb, BoxWeight& lw,
+                     BoxWeight& rw) {
   std::array<double, 3> lo{}, ext{};
   for (int a = 0; a < 3; ++a) lo[size_t(a)] = cb.lo[a], ext[size_t(a)] = cb.hi[a] - cb.lo[a];
   const Bins bins = reduce_objects<Bins>(
@@ -235,7 +237,9 @@ size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, si
 std::vector<fmt::TopNode> collapse_top(const std::vector<BinNode>& bin) {
   std::vector<fmt::TopNode> top;
   if (bin.empty()) return top;
-  struct Item { uint32_t bin_node, parent, slot, depth; };
+  struct Item {
+    uint32_t bin_node, parent, slot, depth;
+  };
   std::vector<Item> queue = {{0, fmt::TopNode::kEmpty, 0, 0}};
   for (size_t q = 0; q < queue.size(); ++q) {
     const Item it = queue[q];
@@ -249,8 +253,10 @@ std::vector<fmt::TopNode> collapse_top(const std::vector<BinNode>& bin) {
     if (it.parent != fmt::TopNode::kEmpty) top[it.parent].child[it.slot] = id;
     std::vector<uint32_t> kids;
     const BinNode& root = bin[it.bin_node];
-    if (root.point != kNoIndex) kids = {it.bin_node};
-    else kids = {root.left, root.right};
+    if (root.point != kNoIndex)
+      kids = {it.bin_node};
+    else
+      kids = {root.left, root.right};
     while (kids.size() < 4) {
       int open = -1;
       double sa = -1;
@@ -277,8 +283,10 @@ std::vector<fmt::TopNode> collapse_top(const std::vector<BinNode>& bin) {
         node.lo[a][l] = std::nextafter(float(k.box.lo[a]), -std::numeric_limits<float>::infinity());
         node.hi[a][l] = std::nextafter(float(k.box.hi[a]), std::numeric_limits<float>::infinity());
       }
-      if (k.point != kNoIndex) node.child[l] = fmt::TopNode::kLeafBit | k.point;
-      else queue.push_back({kids[l], id, uint32_t(l), it.depth + 1});
+      if (k.point != kNoIndex)
+        node.child[l] = fmt::TopNode::kLeafBit | k.point;
+      else
+        queue.push_back({kids[l], id, uint32_t(l), it.depth + 1});
     }
   }
   return top;
@@ -317,7 +325,11 @@ struct Cutter {
 
   // [b0, e0) with its sums bw0 (the parent's partition made them: no pass of its own).
   void cut(size_t b0, size_t e0, uint32_t id0, const BoxWeight& bw0) {
-    struct Range { size_t b, e; uint32_t node; BoxWeight bw; };
+    struct Range {
+      size_t b, e;
+      uint32_t node;
+      BoxWeight bw;
+    };
     std::vector<Range> stack = {{b0, e0, id0, bw0}};
     while (!stack.empty()) {
       const Range t = stack.back();
@@ -389,8 +401,8 @@ Plan plan_batching_points(const Scene& scene, const ClusterOptions& opt) {
   uint64_t segment_triangles = 0;
   for (size_t m = 0; m < uses.size(); ++m)
     if (plan.mesh_instanced[m]) segment_triangles += scene.meshes[m].triangle_count();
-  const uint64_t seg_target = opt.segment_target ? opt.segment_target
-                                                 : std::min(plan.chunk_target, target_for(segment_triangles));
+  const uint64_t seg_target =
+      opt.segment_target ? opt.segment_target : std::min(plan.chunk_target, target_for(segment_triangles));
   plan.mesh_segment.assign(scene.meshes.size(), kNoIndex);
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (!plan.mesh_instanced[m]) continue;

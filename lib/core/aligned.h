@@ -14,7 +14,7 @@ namespace rtp {
 // decompressed chunk of 30 MiB is then faulted in 15 times instead of 7,680 (4 KiB pages), which on
 // this project's VM took as long as decompressing it (docs/trace/budget.md).
 inline constexpr size_t kHugeThreshold = size_t(4) << 20;
-void* allocate_large(size_t bytes);            // throws std::bad_alloc
+void* allocate_large(size_t bytes);  // throws std::bad_alloc
 // Freed buffers stay mapped (up to 512 MiB, oldest unmapped first): the next allocate_large moves their
 // pages into the new buffer 2 MiB at a time (mremap) instead of faulting in and zeroing fresh ones, of
 // any sizes; release_kept_large() unmaps what is left.
@@ -25,7 +25,9 @@ template <class T, size_t A = 64>
 struct AlignedAllocator {
   using value_type = T;
   template <class U>
-  struct rebind { using other = AlignedAllocator<U, A>; };
+  struct rebind {
+    using other = AlignedAllocator<U, A>;
+  };
   AlignedAllocator() = default;
   template <class U>
   AlignedAllocator(const AlignedAllocator<U, A>&) {}
@@ -49,7 +51,9 @@ struct AlignedAllocator {
     ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
   }
   template <class U>
-  bool operator==(const AlignedAllocator<U, A>&) const { return true; }
+  bool operator==(const AlignedAllocator<U, A>&) const {
+    return true;
+  }
 };
 
 using AlignedBytes = std::vector<uint8_t, AlignedAllocator<uint8_t>>;

@@ -25,8 +25,6 @@ class Error : public std::runtime_error {
   ExitCode code_;
 };
 
-[[noreturn]] inline void fail_invalid(const std::string& message) {
-  throw Error(ExitCode::kInputInvalid, message);
-}
+[[noreturn]] inline void fail_invalid(const std::string& message) { throw Error(ExitCode::kInputInvalid, message); }
 
 }  // namespace rtp

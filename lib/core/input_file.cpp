@@ -33,8 +33,9 @@ int open_input_file(const std::string& path, const std::string& what, int extra_
   int fd = ::open(path.c_str(), base | extra_flags);
   if (fd < 0 && errno == EINVAL && (extra_flags & O_DIRECT)) fd = ::open(path.c_str(), base | (extra_flags & ~O_DIRECT));
   if (fd < 0)
-    throw Error(ExitCode::kInputIo, "cannot open " + label(what, path) + ": " + (errno == ENOENT ? "no such file" : std::strerror(errno)));
-  struct stat st{};
+    throw Error(ExitCode::kInputIo,
+                "cannot open " + label(what, path) + ": " + (errno == ENOENT ? "no such file" : std::strerror(errno)));
+  struct stat st {};
   if (::fstat(fd, &st) != 0) {
     const int e = errno;
     ::close(fd);
@@ -43,8 +44,8 @@ int open_input_file(const std::string& path, const std::string& what, int extra_
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
     if (S_ISDIR(st.st_mode)) throw Error(ExitCode::kInputIo, "cannot open " + label(what, path) + ": is a directory");
-    throw Error(ExitCode::kInputIo, "cannot open " + label(what, path) + ": is not a regular file (" + type_name(st.st_mode) +
-                                        ")");
+    throw Error(ExitCode::kInputIo,
+                "cannot open " + label(what, path) + ": is not a regular file (" + type_name(st.st_mode) + ")");
   }
   const int fl = ::fcntl(fd, F_GETFL);
   if (fl < 0 || ::fcntl(fd, F_SETFL, fl & ~O_NONBLOCK) != 0) {
@@ -62,7 +63,8 @@ void read_exact(int fd, uint64_t offset, void* out, size_t size, const std::stri
     const ssize_t n = ::pread(fd, p, size, off_t(offset));
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) throw Error(ExitCode::kInputIo, "cannot read '" + path + "': " + std::strerror(errno));
-    if (n == 0) throw Error(ExitCode::kInputIo, "cannot read '" + path + "': the file is shorter than it was (changed while read?)");
+    if (n == 0)
+      throw Error(ExitCode::kInputIo, "cannot read '" + path + "': the file is shorter than it was (changed while read?)");
     p += n;
     size -= size_t(n);
     offset += uint64_t(n);
@@ -85,7 +87,8 @@ std::string read_input_file(const std::string& path, const std::string& what) {
 }
 
 void check_not_same_file(const std::string& input, const std::string& output) {
-  struct stat a{}, b{};
+  struct stat a {
+  }, b{};
   if (input.empty() || output.empty() || ::stat(input.c_str(), &a) != 0 || ::stat(output.c_str(), &b) != 0) return;
   if (a.st_dev == b.st_dev && a.st_ino == b.st_ino)
     throw Error(ExitCode::kUsage, "output '" + output + "' is the input file '" + input +

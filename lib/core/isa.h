@@ -4,7 +4,7 @@
 namespace rtp {
 
 enum class Isa { kScalar, kAvx2, kAvx512 };
-Isa detect_isa();              // the best this CPU supports (cpuid + OS support), computed once
+Isa detect_isa();               // the best this CPU supports (cpuid + OS support), computed once
 const char* isa_name(Isa isa);  // "scalar", "avx2", "avx512"
 
 }  // namespace rtp

@@ -50,9 +50,7 @@ inline Vec3d cross(const Vec3d& a, const Vec3d& b) {
 }
 inline double length(const Vec3d& a) { return std::sqrt(dot(a, a)); }
 
-inline bool is_finite(const Vec3f& v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
+inline bool is_finite(const Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
 // Axis-aligned box in double (bounds are accumulated in double, stored as float outward-rounded).
 struct Aabb {
@@ -98,8 +96,7 @@ struct Mat4d {
   static Mat4d from_trs(const double t[3], const double q[4], const double s[3]);
   double det3() const {
     const Mat4d& a = *this;
-    return a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) -
-           a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0)) +
+    return a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0)) +
            a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
   }
 };
@@ -134,8 +131,7 @@ struct Affine3x4 {
   Vec3d apply(const Vec3d& p) const {
     Vec3d o;
     for (int r = 0; r < 3; ++r)
-      o[r] = double((*this)(r, 0)) * p.x + double((*this)(r, 1)) * p.y + double((*this)(r, 2)) * p.z +
-             double((*this)(r, 3));
+      o[r] = double((*this)(r, 0)) * p.x + double((*this)(r, 1)) * p.y + double((*this)(r, 2)) * p.z + double((*this)(r, 3));
     return o;
   }
   double det3() const {

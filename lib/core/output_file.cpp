@@ -47,7 +47,7 @@ bool g_installed = false;
 extern "C" void remove_temporaries_and_die(int sig) {
   for (int i = 0; i < kSlots; ++i)
     if (g_used[i].load()) ::unlink(g_paths[i]);
-  struct sigaction dfl{};
+  struct sigaction dfl {};
   dfl.sa_handler = SIG_DFL;
   sigemptyset(&dfl.sa_mask);
   ::sigaction(sig, &dfl, nullptr);
@@ -59,9 +59,9 @@ void install_handlers() {
   if (g_installed) return;
   g_installed = true;
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
-    struct sigaction old{};
+    struct sigaction old {};
     if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler != SIG_DFL || (old.sa_flags & SA_SIGINFO)) continue;
-    struct sigaction sa{};
+    struct sigaction sa {};
     sa.sa_handler = remove_temporaries_and_die;
     sigemptyset(&sa.sa_mask);
     ::sigaction(sig, &sa, nullptr);
@@ -104,10 +104,11 @@ std::string unique_suffix() {
 
 void check_output_path(const std::string& path) {
   if (path.empty()) throw Error(ExitCode::kOutput, "no output path");
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) == 0) {
     if (const char* bad = non_regular_kind(st.st_mode)) fail_output(path, bad);
-    if (::access(path.c_str(), W_OK) != 0) fail_output(path, S_ISCHR(st.st_mode) ? "the device is not writable" : "the existing file is not writable");
+    if (::access(path.c_str(), W_OK) != 0)
+      fail_output(path, S_ISCHR(st.st_mode) ? "the device is not writable" : "the existing file is not writable");
     if (S_ISCHR(st.st_mode)) return;  // written in place
   }
   std::error_code ec;
@@ -118,7 +119,7 @@ void check_output_path(const std::string& path) {
 
 OutputFile::OutputFile(const std::string& path) : path_(path) {
   if (path.empty()) throw Error(ExitCode::kOutput, "no output path");
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) == 0) {
     if (const char* bad = non_regular_kind(st.st_mode)) fail_output(path, bad);
     if (S_ISCHR(st.st_mode)) {
@@ -153,7 +154,12 @@ OutputFile::OutputFile(const std::string& path) : path_(path) {
     ::close(dir_fd_);
     fail_output(path, std::strerror(e));
   }
-  ::fchmod(fd_, 0644 & ~[] { const mode_t m = ::umask(0); ::umask(m); return m; }());
+  ::fchmod(
+      fd_, 0644 & ~[] {
+        const mode_t m = ::umask(0);
+        ::umask(m);
+        return m;
+      }());
   named_tmp_ = tmpl;
   register_temporary(named_tmp_);
 }

@@ -54,9 +54,10 @@ void Progress::update(uint64_t done, uint64_t total) {
   const double eta = frac > 0 ? el * (1 - frac) / frac : 0;
   char counts[64] = "";
   if (counts_)
-    std::snprintf(counts, sizeof counts, "  %llu/%llu", static_cast<unsigned long long>(done), static_cast<unsigned long long>(total));
-  std::fprintf(stderr, "%s%s %5.1f%%%s  ETA %.0f s  peak RSS %.0f MiB%s", lines_ ? "" : "\r\033[K", stage_.c_str(),
-               100 * frac, counts, eta, peak_rss_mib(), lines_ ? "\n" : "");
+    std::snprintf(counts, sizeof counts, "  %llu/%llu", static_cast<unsigned long long>(done),
+                  static_cast<unsigned long long>(total));
+  std::fprintf(stderr, "%s%s %5.1f%%%s  ETA %.0f s  peak RSS %.0f MiB%s", lines_ ? "" : "\r\033[K", stage_.c_str(), 100 * frac,
+               counts, eta, peak_rss_mib(), lines_ ? "\n" : "");
   drawn_ = !lines_;
 }
 

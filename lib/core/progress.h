@@ -8,8 +8,8 @@
 
 namespace rtp {
 
-double peak_rss_mib();     // getrusage max RSS
-double current_rss_mib();  // /proc/self/statm
+double peak_rss_mib();                  // getrusage max RSS
+double current_rss_mib();               // /proc/self/statm
 std::string human_bytes(double bytes);  // "512 B", "1.5 KiB", "2.3 MiB" ... (powers of 1024)
 
 class Progress {
@@ -19,8 +19,8 @@ class Progress {
   // Starts a stage (ends the previous line). counts = false: the stage's units are work estimates,
   // shown only as a percentage.
   void stage(const std::string& name, bool counts = true);
-  void update(uint64_t done, uint64_t total);     // thread-safe enough: called from one thread
-  void finish();                                  // clears the line
+  void update(uint64_t done, uint64_t total);  // thread-safe enough: called from one thread
+  void finish();                               // clears the line
 
  private:
   bool on_, lines_ = false, counts_ = true;

@@ -33,8 +33,7 @@ std::array<uint8_t, 3> instance_color(uint32_t instance);
 // Shades width x height primary rays (row-major) and their closest hits. `shading` (per hit, may be
 // null) holds stored normals (rtpack-trace --shading); a zero normal there falls back to the normal
 // estimated from the world positions of neighbouring pixels that hit the same instance.
-Rgb8 shade(const fmt::Ray* rays, const fmt::Hit* hits, int width, int height, Shade mode,
-           const fmt::Shading* shading = nullptr);
+Rgb8 shade(const fmt::Ray* rays, const fmt::Hit* hits, int width, int height, Shade mode, const fmt::Shading* shading = nullptr);
 
 // PNG bytes of the image (8-bit RGB).
 std::vector<uint8_t> encode_png(const Rgb8& image);

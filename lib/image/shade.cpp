@@ -67,10 +67,14 @@ V3 estimated_normal(const fmt::Ray* rays, const fmt::Hit* hits, int w, int h, in
 }  // namespace
 
 bool parse_shade(const std::string& name, Shade* out) {
-  if (name == "normal") *out = Shade::kNormal;
-  else if (name == "depth") *out = Shade::kDepth;
-  else if (name == "instance") *out = Shade::kInstance;
-  else return false;
+  if (name == "normal")
+    *out = Shade::kNormal;
+  else if (name == "depth")
+    *out = Shade::kDepth;
+  else if (name == "instance")
+    *out = Shade::kInstance;
+  else
+    return false;
   return true;
 }
 

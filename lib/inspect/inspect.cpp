@@ -33,7 +33,7 @@ struct Ctx {
   Problems problems;
   Resident res;
   std::unique_ptr<Verifier> ver;
-  std::vector<nlohmann::json> rows;     // per TOC entry
+  std::vector<nlohmann::json> rows;  // per TOC entry
   BvhGroup seg_meshes, pieces, inst_bvhs;
   std::map<uint32_t, Box3d> mesh_root;  // instanced mesh -> its BVH's root bounds (local space)
   Spread seg_meshes_n, seg_tris, seg_stored, seg_raw;
@@ -183,7 +183,7 @@ ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   const float* li = rec.inverse_linear;
   const double det = det3_of(li);
   if (!(det != 0) || !std::isfinite(det)) return out;  // singular: never hit, nothing to contain
-  double m[9];  // L = adj(L^-1) / det, row-major
+  double m[9];                                         // L = adj(L^-1) / det, row-major
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) {
       const int r1 = (c + 1) % 3, r2 = (c + 2) % 3, c1 = (r + 1) % 3, c2 = (r + 2) % 3;
@@ -192,7 +192,8 @@ ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   double norm_l = 0, norm_li = 0;  // infinity norms
   for (int r = 0; r < 3; ++r) {
     norm_l = std::max(norm_l, std::fabs(m[3 * r]) + std::fabs(m[3 * r + 1]) + std::fabs(m[3 * r + 2]));
-    norm_li = std::max(norm_li, std::fabs(double(li[3 * r])) + std::fabs(double(li[3 * r + 1])) + std::fabs(double(li[3 * r + 2])));
+    norm_li =
+        std::max(norm_li, std::fabs(double(li[3 * r])) + std::fabs(double(li[3 * r + 1])) + std::fabs(double(li[3 * r + 2])));
   }
   const double cond = std::max(1.0, norm_l * norm_li);
   for (int corner = 0; corner < 8; ++corner) {
@@ -232,8 +233,8 @@ void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
     BvhCheck ck;
     ck.label = what;
     if (c.ver) ck.problems = &c.problems, ck.prims = &sd.prims[k];
-    const BvhShape s = mesh_bvh_shape<W, B>(nodes + e[k].node_first, e[k].node_count, blocks + e[k].block_first,
-                                            e[k].block_count, e[k].root, &ck);
+    const BvhShape s = mesh_bvh_shape<W, B>(nodes + e[k].node_first, e[k].node_count, blocks + e[k].block_first, e[k].block_count,
+                                            e[k].root, &ck);
     g.add(s);
     c.seg_meshes.add(s);
     c.mesh_root[e[k].id] = ck.root_box;
@@ -281,14 +282,14 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
     BvhCheck ck;
     ck.label = what;
     if (c.ver) ck.problems = &c.problems, ck.prims = &pd.piece_prims[k];
-    const BvhShape s = mesh_bvh_shape<W, B>(nodes + e[k].node_first, e[k].node_count, blocks + e[k].block_first,
-                                            e[k].block_count, e[k].root, &ck);
+    const BvhShape s = mesh_bvh_shape<W, B>(nodes + e[k].node_first, e[k].node_count, blocks + e[k].block_first, e[k].block_count,
+                                            e[k].root, &ck);
     g.add(s);
     c.pieces.add(s);
     piece_root[k] = ck.root_box;
   }
   // What each local instance's leaf box must contain: its mesh's (piece's) root bounds placed by its
-// transform (SPEC §4.2: pieces stay in their unique mesh's local space, with its instance transform).
+  // transform (SPEC §4.2: pieces stay in their unique mesh's local space, with its instance transform).
   pd.bounds.resize(pd.records.size());
   uint64_t instances = 0, instanced = 0;
   for (size_t k = 0; k < pd.records.size(); ++k) {
@@ -321,7 +322,10 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   row["unique_triangles"] = unique;
   row["instanced_triangles"] = instanced;
   row["bvh"] = g.json();
-  row["instance_bvh"] = {{"nodes", top.nodes}, {"c_box", top.c_box}, {"c_tri", top.c_tri}, {"branching", top.branching},
+  row["instance_bvh"] = {{"nodes", top.nodes},
+                         {"c_box", top.c_box},
+                         {"c_tri", top.c_tri},
+                         {"branching", top.branching},
                          {"max_depth", top.max_depth}};
   if (c.ver) c.ver->point(pd);
 }
@@ -335,14 +339,18 @@ void on_demand(Ctx& c) {
       const std::optional<AlignedBytes> b = load(c, i);
       if (!b) continue;
       guarded(c, [&] {
-        if (kind == uint32_t(ChunkKind::kMeshSegment)) segment_chunk<W, B>(c, i, *b);
-        else point_chunk<W, B>(c, i, *b);
+        if (kind == uint32_t(ChunkKind::kMeshSegment))
+          segment_chunk<W, B>(c, i, *b);
+        else
+          point_chunk<W, B>(c, i, *b);
       });
     }
 }
 
 nlohmann::json sizes(Ctx& c, double tris) {
-  struct Sum { uint64_t chunks = 0, raw = 0, stored = 0; };
+  struct Sum {
+    uint64_t chunks = 0, raw = 0, stored = 0;
+  };
   std::map<uint32_t, Sum> by_kind;
   Sum resident, demand;
   for (const fmt::TocEntry& e : c.r.toc()) {
@@ -372,8 +380,9 @@ nlohmann::json sizes(Ctx& c, double tris) {
   const fmt::Header& h = c.r.header();
   const uint64_t toc_bytes = h.toc_count * h.toc_entry_size;
   const uint64_t padding = h.file_size - fmt::kAlignment - toc_bytes - resident.stored - demand.stored;
-  return {{"by_kind", kinds}, {"resident", row(resident)}, {"on_demand", row(demand)}, {"header_block_bytes", fmt::kAlignment},
-          {"toc_bytes", toc_bytes}, {"alignment_padding_bytes", padding}};
+  return {{"by_kind", kinds},         {"resident", row(resident)},
+          {"on_demand", row(demand)}, {"header_block_bytes", fmt::kAlignment},
+          {"toc_bytes", toc_bytes},   {"alignment_padding_bytes", padding}};
 }
 
 nlohmann::json points_json(Ctx& c) {
@@ -397,19 +406,27 @@ nlohmann::json points_json(Ctx& c) {
       n_bytes.add(double(c.r.toc()[size_t(i)].stored_size));
     }
   }
-  return {{"count", c.res.descs.size()}, {"chunks_read", c.points_read}, {"unique_triangles", unique},
-          {"instanced_triangles", instanced}, {"instances", instances}, {"pieces", pieces},
-          {"triangles", n_tris.json()}, {"stored_bytes", n_bytes.json()}, {"instances_per_point", n_inst.json()},
-          {"pieces_per_point", n_pieces.json()}, {"triangles_histogram", tris.json()},
-          {"stored_bytes_histogram", bytes.json()}, {"instances_histogram", inst.json()}};
+  return {{"count", c.res.descs.size()},
+          {"chunks_read", c.points_read},
+          {"unique_triangles", unique},
+          {"instanced_triangles", instanced},
+          {"instances", instances},
+          {"pieces", pieces},
+          {"triangles", n_tris.json()},
+          {"stored_bytes", n_bytes.json()},
+          {"instances_per_point", n_inst.json()},
+          {"pieces_per_point", n_pieces.json()},
+          {"triangles_histogram", tris.json()},
+          {"stored_bytes_histogram", bytes.json()},
+          {"instances_histogram", inst.json()}};
 }
 
 nlohmann::json metadata_json(const Resident& res) {
   if (!res.meta_ok) return nullptr;
   const nlohmann::json& m = res.meta;
   nlohmann::json out = nlohmann::json::object();
-  for (const char* k : {"format", "tool_version", "source", "options", "bvh_build", "chunk_target", "chunk_by",
-                        "batching_points", "mesh_segments", "pieces", "dag"})
+  for (const char* k : {"format", "tool_version", "source", "options", "bvh_build", "chunk_target", "chunk_by", "batching_points",
+                        "mesh_segments", "pieces", "dag"})
     if (m.contains(k)) out[k] = m[k];
   nlohmann::json cams = nlohmann::json::array();
   // The cameras the converter wrote (write_package.cpp): every field checked, named by its pointer.
@@ -443,25 +460,36 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
   const auto& toc = reader.toc();
   for (size_t i = 0; i < toc.size(); ++i) {
     const fmt::TocEntry& e = toc[i];
-    c.rows.push_back({{"index", i}, {"kind", chunk_kind_name(e.kind)}, {"id", e.id}, {"offset", e.offset},
+    c.rows.push_back({{"index", i},
+                      {"kind", chunk_kind_name(e.kind)},
+                      {"id", e.id},
+                      {"offset", e.offset},
                       {"compression", e.compression == 1 ? "zstd" : (e.compression == 0 ? "none" : "unknown")},
-                      {"raw_bytes", e.raw_size}, {"stored_bytes", e.stored_size},
+                      {"raw_bytes", e.raw_size},
+                      {"stored_bytes", e.stored_size},
                       {"ratio", e.stored_size ? double(e.raw_size) / double(e.stored_size) : 1.0}});
   }
   read_resident(c);
   if (options.verify) c.ver = std::make_unique<Verifier>(reader, c.res, c.problems);
   const uint32_t w = h.bvh_width, b = h.leaf_width;
-  if (w == 4 && b == 4) on_demand<4, 4>(c);
-  else if (w == 8 && b == 8) on_demand<8, 8>(c);
-  else if (w == 16 && b == 16) on_demand<16, 16>(c);
-  else if (w == 8 && b == 4) on_demand<8, 4>(c);
-  else if (w == 16 && b == 8) on_demand<16, 8>(c);
-  else c.problems.add("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
+  if (w == 4 && b == 4)
+    on_demand<4, 4>(c);
+  else if (w == 8 && b == 8)
+    on_demand<8, 8>(c);
+  else if (w == 16 && b == 16)
+    on_demand<16, 16>(c);
+  else if (w == 8 && b == 4)
+    on_demand<8, 4>(c);
+  else if (w == 16 && b == 8)
+    on_demand<16, 8>(c);
+  else
+    c.problems.add("header: unsupported BVH width " + std::to_string(w) + " / leaf width " + std::to_string(b));
   // Unknown kinds are skipped by readers, but their checksums and frames are still checked.
   for (size_t i = 0; i < toc.size(); ++i)
     if (!is_resident(toc[i].kind) && toc[i].kind != 16 && toc[i].kind != 17) {
       const std::optional<AlignedBytes> b = load(c, i);
-      const bool attr = toc[i].kind == uint32_t(ChunkKind::kSegmentAttributes) || toc[i].kind == uint32_t(ChunkKind::kPointAttributes);
+      const bool attr =
+          toc[i].kind == uint32_t(ChunkKind::kSegmentAttributes) || toc[i].kind == uint32_t(ChunkKind::kPointAttributes);
       if (b && attr && c.ver) c.ver->attributes(i, *b);
     }
   if (c.ver) c.ver->finish();
@@ -477,11 +505,16 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
   nlohmann::json attrs = nlohmann::json::array();
   if (h.flags & fmt::kFlagNormals) attrs.push_back("normal");
   if (h.flags & fmt::kFlagUvs) attrs.push_back("uv");
-  j["header"] = {{"version", std::to_string(h.version_major) + "." + std::to_string(h.version_minor)}, {"attributes", attrs},
-                 {"bvh_width", w}, {"leaf_width", b}, {"unique_triangles", h.unique_triangles},
-                 {"instanced_triangles", h.instanced_triangles}, {"toc_entries", h.toc_count},
-                 {"bounds", {{"min", {h.bounds_lo[0], h.bounds_lo[1], h.bounds_lo[2]}},
-                             {"max", {h.bounds_hi[0], h.bounds_hi[1], h.bounds_hi[2]}}}}};
+  j["header"] = {
+      {"version", std::to_string(h.version_major) + "." + std::to_string(h.version_minor)},
+      {"attributes", attrs},
+      {"bvh_width", w},
+      {"leaf_width", b},
+      {"unique_triangles", h.unique_triangles},
+      {"instanced_triangles", h.instanced_triangles},
+      {"toc_entries", h.toc_count},
+      {"bounds",
+       {{"min", {h.bounds_lo[0], h.bounds_lo[1], h.bounds_lo[2]}}, {"max", {h.bounds_hi[0], h.bounds_hi[1], h.bounds_hi[2]}}}}};
   j["sizes"] = sizes(c, tris);
   j["bytes_per_unique_triangle"] = double(h.file_size) / tris;
   j["dag"] = dag_report(reader, c.res, c.problems, c.ver != nullptr);
@@ -492,11 +525,15 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
   uint64_t seg_tris = 0;
   for (const fmt::MeshInfo& m : c.res.meshes)
     if (m.segment != 0xFFFFFFFFu) seg_tris += m.triangles;
-  j["mesh_segments"] = {{"count", c.seg_raw.n}, {"chunks_read", c.segments_read}, {"triangles", seg_tris},
-                        {"meshes_per_segment", c.seg_meshes_n.json()}, {"triangles_per_segment", c.seg_tris.json()},
-                        {"stored_bytes", c.seg_stored.json()}, {"raw_bytes", c.seg_raw.json()}};
-  j["bvh"] = {{"segment meshes", c.seg_meshes.json()}, {"batching-point pieces", c.pieces.json()},
-              {"instance BVHs", c.inst_bvhs.json()}};
+  j["mesh_segments"] = {{"count", c.seg_raw.n},
+                        {"chunks_read", c.segments_read},
+                        {"triangles", seg_tris},
+                        {"meshes_per_segment", c.seg_meshes_n.json()},
+                        {"triangles_per_segment", c.seg_tris.json()},
+                        {"stored_bytes", c.seg_stored.json()},
+                        {"raw_bytes", c.seg_raw.json()}};
+  j["bvh"] = {
+      {"segment meshes", c.seg_meshes.json()}, {"batching-point pieces", c.pieces.json()}, {"instance BVHs", c.inst_bvhs.json()}};
   uint32_t top_depth = 0;
   for (const fmt::TopNode& n : c.res.top) top_depth = std::max(top_depth, n.depth + 1);
   j["top_level"] = {{"nodes", c.res.top.size()}, {"max_depth", top_depth}};

@@ -29,9 +29,9 @@ struct InspectOptions {
 };
 
 struct InspectResult {
-  nlohmann::json report;              // everything rtpack-inspect prints (as tables, or --json as is)
-  uint64_t problems = 0;              // chunks that failed to read or parse, failed invariants
-  std::vector<std::string> listed;    // the first max_listed problem messages
+  nlohmann::json report;            // everything rtpack-inspect prints (as tables, or --json as is)
+  uint64_t problems = 0;            // chunks that failed to read or parse, failed invariants
+  std::vector<std::string> listed;  // the first max_listed problem messages
 };
 
 // Reads every chunk once (CRC-checked, decompressed) and analyses it. Never throws for a bad chunk:
@@ -90,22 +90,22 @@ struct ItemBound {
 // walk still never reads out of range, and visits each node at most once).
 struct BvhCheck {
   Problems* problems = nullptr;
-  std::string label;                      // message prefix: "<chunk label>: piece 3 (entry 0)"
-  std::vector<uint32_t>* prims = nullptr; // out: prim of every non-padding lane (instance BVH: ids)
-  const ItemBound* items = nullptr;       // instance BVH: the bound each local instance needs
+  std::string label;                       // message prefix: "<chunk label>: piece 3 (entry 0)"
+  std::vector<uint32_t>* prims = nullptr;  // out: prim of every non-padding lane (instance BVH: ids)
+  const ItemBound* items = nullptr;        // instance BVH: the bound each local instance needs
   uint64_t item_count = 0;
-  Box3d root_box;                         // out: root lanes' union (a leaf root: its contents)
+  Box3d root_box;  // out: root lanes' union (a leaf root: its contents)
 };
 
 // A mesh or piece BVH: `root` is a ChildRef relative to `nodes` and `blocks`.
 template <int W, int B>
-BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const fmt::LeafBlock<B>* blocks,
-                        uint64_t block_count, uint32_t root, BvhCheck* check = nullptr);
+BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const fmt::LeafBlock<B>* blocks, uint64_t block_count,
+                        uint32_t root, BvhCheck* check = nullptr);
 
 // A batching point's instance BVH: leaves index `ids` (local instance indices).
 template <int W>
-BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const uint32_t* ids,
-                            uint64_t id_count, uint32_t root, BvhCheck* check = nullptr);
+BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t node_count, const uint32_t* ids, uint64_t id_count,
+                            uint32_t root, BvhCheck* check = nullptr);
 
 // min / mean / max of a statistic over BVHs (or chunks).
 struct Spread {
@@ -206,15 +206,15 @@ class Verifier {
   const PackageReader& r_;
   const Resident& res_;
   Problems& out_;
-  std::vector<uint32_t> instance_seen_;              // per scene instance: as a non-piece instance
-  std::vector<std::vector<uint8_t>> unique_cover_;   // per scene instance of a unique mesh: per triangle
+  std::vector<uint32_t> instance_seen_;             // per scene instance: as a non-piece instance
+  std::vector<std::vector<uint8_t>> unique_cover_;  // per scene instance of a unique mesh: per triangle
   struct PieceHome {  // a unique mesh's instance: its first piece (by point, local index) and that record
     uint32_t point = ~0u, local = 0;
     fmt::InstanceRecord rec{};
   };
   std::map<uint32_t, PieceHome> piece_home_;
-  std::vector<uint8_t> mesh_in_segment_;             // per mesh: entries in segments
-  std::map<uint32_t, uint32_t> piece_seen_;         // piece id -> times stored
+  std::vector<uint8_t> mesh_in_segment_;     // per mesh: entries in segments
+  std::map<uint32_t, uint32_t> piece_seen_;  // piece id -> times stored
   AttributeChecker attrs_;
   uint64_t pieces_ = 0, segments_ = 0, points_ = 0;
 };

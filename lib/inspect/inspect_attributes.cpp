@@ -11,7 +11,6 @@
 namespace rtp::inspect_detail {
 namespace {
 
-
 uint32_t geometry_kind(uint32_t attr_kind) {
   return attr_kind == uint32_t(fmt::ChunkKind::kSegmentAttributes) ? uint32_t(fmt::ChunkKind::kMeshSegment)
                                                                    : uint32_t(fmt::ChunkKind::kBatchingPoint);
@@ -36,8 +35,7 @@ void AttributeChecker::geometry(uint32_t kind, uint64_t id, std::vector<Geometry
   geometry_[{kind, id}] = std::move(entries);
 }
 
-void AttributeChecker::chunk(uint32_t kind, uint64_t id, const std::string& label, const AlignedBytes& bytes,
-                             Problems& out) {
+void AttributeChecker::chunk(uint32_t kind, uint64_t id, const std::string& label, const AlignedBytes& bytes, Problems& out) {
   Seen& s = attrs_[{geometry_kind(kind), id}];
   s.label = label;
   try {

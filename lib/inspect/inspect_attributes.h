@@ -20,8 +20,8 @@ namespace rtp::inspect_detail {
 
 // What an attribute entry must agree with: one MeshEntry of the geometry chunk.
 struct GeometryEntry {
-  uint32_t id = 0;         // MeshEntry id
-  uint32_t mesh = 0;       // scene mesh (segment: = id; piece: its instance's mesh), or 0xFFFFFFFF
+  uint32_t id = 0;    // MeshEntry id
+  uint32_t mesh = 0;  // scene mesh (segment: = id; piece: its instance's mesh), or 0xFFFFFFFF
   uint64_t triangles = 0;
   uint64_t prim_hash = 0;  // pieces: hash of the set of leaf prims (0 for whole meshes)
 };

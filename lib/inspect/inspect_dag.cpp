@@ -16,7 +16,6 @@
 namespace rtp::inspect_detail {
 namespace {
 
-
 uint32_t grid_levels(uint32_t resolution) {  // levels above the 4^3 leaves: log2(R / 4)
   return uint32_t(std::countr_zero(resolution)) - 2;
 }
@@ -74,7 +73,8 @@ void check_presence(const PackageReader& r, const Resident& res, Problems& out) 
   const std::string grids = " the grids section (" + str(uint32_t(fmt::SectionType::kPointGrids)) + ")";
   if (res.dag_present && res.descs_ok && !res.grids_present)
     out.add(res.dag_label + ": a DAG pool, but the batching-point descriptors have no" + grids);
-  if (res.grids_present && !res.dag_present) out.add(res.descs_label + ":" + grids + " is present but there is no DAG pool chunk");
+  if (res.grids_present && !res.dag_present)
+    out.add(res.descs_label + ":" + grids + " is present but there is no DAG pool chunk");
   const bool has = res.dag_present || res.grids_present;
   if (flag && !has) out.add("header: flag kFlagDag (4) is set, but the package has no DAG pool and no grids section");
   if (!flag && has) out.add("header: the package holds culling DAGs, but flag kFlagDag (4) is not set");
@@ -99,7 +99,10 @@ bool covers(const fmt::DagGrid& g, const fmt::BatchingPointDesc& d) {
 }
 
 std::string grid_name(const fmt::DagGrid& g) {
-  return "root " + (g.root == fmt::kDagEmpty ? std::string("empty") : g.root == fmt::kDagFull ? std::string("full") : str(g.root)) +
+  return "root " +
+         (g.root == fmt::kDagEmpty  ? std::string("empty")
+          : g.root == fmt::kDagFull ? std::string("full")
+                                    : str(g.root)) +
          ", " + str(g.resolution) + "^3";
 }
 
@@ -108,8 +111,10 @@ std::string grid_name(const fmt::DagGrid& g) {
 nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems& problems, bool verify) {
   check_presence(r, res, problems);  // the tracer refuses the same (package_tracer.cpp load_dags)
   const uint64_t pool_bytes = res.dag_ok ? res.dag_words.size() * 4 + res.dag_leaves.size() * 8 : 0;
-  nlohmann::json j = {{"present", res.dag_present || res.grids_present}, {"pool_bytes", pool_bytes},
-                      {"node_words", res.dag_words.size()}, {"leaves", res.dag_leaves.size()}};
+  nlohmann::json j = {{"present", res.dag_present || res.grids_present},
+                      {"pool_bytes", pool_bytes},
+                      {"node_words", res.dag_words.size()},
+                      {"leaves", res.dag_leaves.size()}};
   voxel::DagView view{res.dag_words.data(), res.dag_words.size(), res.dag_leaves.data(), res.dag_leaves.size()};
   if (res.cull_count) view.cull = res.cull_nodes.data(), view.cull_count = res.cull_count, view.cull_width = r.header().bvh_width;
   CellCounter counter(view);
@@ -145,7 +150,7 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems&
     }
     if (verify && p < res.descs.size() && !box_empty(res.descs[p]) && !covers(g, res.descs[p]))
       problems.add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) +
-                  ") does not cover the batching point's bounds");
+                   ") does not cover the batching point's bounds");
     const bool needs_pool = g.root != fmt::kDagEmpty && g.root != fmt::kDagFull;
     if (needs_pool && !res.dag_ok) {  // missing or unreadable pool: reported elsewhere
       ++unchecked;
@@ -178,8 +183,9 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems&
   j["grid_bytes"] = points * sizeof(fmt::DagGrid);
   j["resolutions"] = hist;
   j["nodes"] = counter.nodes();
-  j["unreachable_bytes"] = sound == points && res.dag_ok ? nlohmann::json(pool_bytes - std::min(pool_bytes, counter.reached_bytes()))
-                                                         : nlohmann::json(nullptr);
+  j["unreachable_bytes"] = sound == points && res.dag_ok
+                               ? nlohmann::json(pool_bytes - std::min(pool_bytes, counter.reached_bytes()))
+                               : nlohmann::json(nullptr);
   j["separate_bytes"] = separate;
   j["sharing"] = pool_bytes ? double(separate) / double(pool_bytes) : 1.0;
   j["bytes_per_point"] = points ? double(pool_bytes) / double(points) : 0.0;

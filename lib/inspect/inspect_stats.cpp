@@ -57,10 +57,17 @@ void BvhGroup::add(const BvhShape& s) {
 }
 
 nlohmann::json BvhGroup::json() const {
-  return {{"bvhs", bvhs},           {"root_leaves", root_leaves}, {"primitives", triangles},
-          {"nodes", nodes},         {"blocks", blocks},           {"c_box", c_box.json()},
-          {"c_tri", c_tri.json()},  {"sah", sah.json()},          {"branching", branching.json()},
-          {"leaf_fill", leaf_fill.json()}, {"max_depth", max_depth.json()}};
+  return {{"bvhs", bvhs},
+          {"root_leaves", root_leaves},
+          {"primitives", triangles},
+          {"nodes", nodes},
+          {"blocks", blocks},
+          {"c_box", c_box.json()},
+          {"c_tri", c_tri.json()},
+          {"sah", sah.json()},
+          {"branching", branching.json()},
+          {"leaf_fill", leaf_fill.json()},
+          {"max_depth", max_depth.json()}};
 }
 
 void Histogram::add(uint64_t v) {
@@ -112,8 +119,10 @@ struct LeafCount {
 };
 
 void report(BvhCheck* ck, uint32_t node, int lane, const std::string& text) {
-  if (node == kNone) ck->problems->add(ck->label + ": root leaf: " + text);
-  else ck->problems->add(ck->label + ": node " + std::to_string(node) + " lane " + std::to_string(lane) + ": " + text);
+  if (node == kNone)
+    ck->problems->add(ck->label + ": root leaf: " + text);
+  else
+    ck->problems->add(ck->label + ": node " + std::to_string(node) + " lane " + std::to_string(lane) + ": " + text);
 }
 
 // Lane layout (SPEC §2.2): filled lanes first, empty lanes with the never-hit box, valid boxes, and
@@ -147,8 +156,10 @@ uint32_t check_lanes(const fmt::WideNode<W>& n, uint32_t index, BvhCheck* ck) {
     bool ok = true;
     for (int i = 0; i < W; ++i) {
       const uint32_t l = n.order[o][i];
-      if (l >= uint32_t(W) || (seen >> l & 1u) || (uint32_t(i) < filled) != (n.child[l] != ChildRef::kEmpty)) ok = false;
-      else seen |= 1u << l;
+      if (l >= uint32_t(W) || (seen >> l & 1u) || (uint32_t(i) < filled) != (n.child[l] != ChildRef::kEmpty))
+        ok = false;
+      else
+        seen |= 1u << l;
     }
     if (!ok) {
       ck->problems->add(ck->label + ": node " + std::to_string(index) + ": octant " + std::to_string(o) +
@@ -191,7 +202,8 @@ BvhShape walk(const fmt::WideNode<W>* nodes, uint64_t nn, uint32_t root, uint32_
     return s;
   }
   if (root >= nn) {
-    if (chk) chk->problems->add(chk->label + ": root node " + std::to_string(root) + " out of range (" + std::to_string(nn) + " nodes)");
+    if (chk)
+      chk->problems->add(chk->label + ": root node " + std::to_string(root) + " out of range (" + std::to_string(nn) + " nodes)");
     return s;
   }
   struct Item {
@@ -262,16 +274,17 @@ bool same_lane(const fmt::LeafBlock<B>& b, int x, int y) {
 }  // namespace
 
 template <int W, int B>
-BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const fmt::LeafBlock<B>* blocks, uint64_t nb,
-                        uint32_t root, BvhCheck* ck) {
+BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const fmt::LeafBlock<B>* blocks, uint64_t nb, uint32_t root,
+                        BvhCheck* ck) {
   BvhCheck* chk = ck && ck->problems ? ck : nullptr;
   auto leaf = [&](uint32_t ref, const Box3d* box, uint32_t node, int lane, Box3d& contents) {
     LeafCount out;
     const uint64_t first = ChildRef::first_block(ref), count = ChildRef::block_count(ref);
     if (first + count > nb) {
       if (chk)
-        report(chk, node, lane, "leaf blocks [" + std::to_string(first) + ", " + std::to_string(first + count) +
-                                    ") outside the " + std::to_string(nb) + " blocks");
+        report(chk, node, lane,
+               "leaf blocks [" + std::to_string(first) + ", " + std::to_string(first + count) + ") outside the " +
+                   std::to_string(nb) + " blocks");
       return out;
     }
     out.blocks = count;
@@ -294,14 +307,16 @@ BvhShape mesh_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const fmt::L
             for (int a = 0; a < 3; ++a) outside |= !(box->lo[a] <= p[a] && p[a] <= box->hi[a]);
         }
         if (chk && outside)
-          report(chk, node, lane, "block " + std::to_string(k) + " lane " + std::to_string(l) + " (prim " +
-                                      std::to_string(b.prim[l]) + "): vertex not inside the leaf box");
+          report(chk, node, lane,
+                 "block " + std::to_string(k) + " lane " + std::to_string(l) + " (prim " + std::to_string(b.prim[l]) +
+                     "): vertex not inside the leaf box");
       }
       if (chk)
         for (int l = real; l < B; ++l)
           if (!same_lane(b, l, real - 1)) {
-            report(chk, node, lane, "block " + std::to_string(k) + " lane " + std::to_string(l) +
-                                        ": padding lane differs from the triangle it repeats");
+            report(chk, node, lane,
+                   "block " + std::to_string(k) + " lane " + std::to_string(l) +
+                       ": padding lane differs from the triangle it repeats");
             break;
           }
     }
@@ -319,8 +334,9 @@ BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const ui
     const uint64_t first = ChildRef::first_block(ref), count = ChildRef::block_count(ref);
     if (first + count > n_ids) {
       if (chk)
-        report(chk, node, lane, "leaf entries [" + std::to_string(first) + ", " + std::to_string(first + count) +
-                                    ") outside the " + std::to_string(n_ids) + " instance ids");
+        report(chk, node, lane,
+               "leaf entries [" + std::to_string(first) + ", " + std::to_string(first + count) + ") outside the " +
+                   std::to_string(n_ids) + " instance ids");
       return out;
     }
     out.blocks = out.prims = count;
@@ -329,7 +345,8 @@ BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const ui
       if (ck && ck->prims) ck->prims->push_back(id);
       if (!ck || !ck->items) continue;
       if (id >= ck->item_count) {
-        if (chk) report(chk, node, lane, "instance " + std::to_string(id) + " out of range (" + std::to_string(ck->item_count) + ")");
+        if (chk)
+          report(chk, node, lane, "instance " + std::to_string(id) + " out of range (" + std::to_string(ck->item_count) + ")");
         continue;
       }
       const ItemBound& ib = ck->items[id];
@@ -346,9 +363,9 @@ BvhShape instance_bvh_shape(const fmt::WideNode<W>* nodes, uint64_t nn, const ui
   return walk<W>(nodes, nn, root, 1, ck, leaf);
 }
 
-#define RTP_MESH_SHAPE(W, B)                                                                                        \
-  template BvhShape mesh_bvh_shape<W, B>(const fmt::WideNode<W>*, uint64_t, const fmt::LeafBlock<B>*, uint64_t, \
-                                         uint32_t, BvhCheck*);
+#define RTP_MESH_SHAPE(W, B)                                                                                              \
+  template BvhShape mesh_bvh_shape<W, B>(const fmt::WideNode<W>*, uint64_t, const fmt::LeafBlock<B>*, uint64_t, uint32_t, \
+                                         BvhCheck*);
 RTP_MESH_SHAPE(4, 4)
 RTP_MESH_SHAPE(8, 8)
 RTP_MESH_SHAPE(16, 16)

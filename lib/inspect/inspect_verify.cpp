@@ -135,8 +135,10 @@ void Verifier::check_padding() {
   std::string after = "the header block";
   for (const auto& [offset, i] : order) {
     const fmt::TocEntry& e = r_.toc()[i];
-    if (offset < end) out_.add(chunk_label(e, i) + ": overlaps " + after);
-    else zeros(end, offset, "padding after " + after);
+    if (offset < end)
+      out_.add(chunk_label(e, i) + ": overlaps " + after);
+    else
+      zeros(end, offset, "padding after " + after);
     end = std::max(end, offset + e.stored_size);
     after = chunk_label(e, i);
   }
@@ -218,7 +220,8 @@ void Verifier::check_tables() {
     const nlohmann::json& m = res_.meta;
     auto expect = [&](const char* key, uint64_t want) {
       if (!m.contains(key) || !m[key].is_number_unsigned() || m[key].get<uint64_t>() != want)
-        out_.add(res_.meta_label + ": \"" + key + "\" is " + (m.contains(key) ? m[key].dump() : "missing") + ", expected " + str(want));
+        out_.add(res_.meta_label + ": \"" + key + "\" is " + (m.contains(key) ? m[key].dump() : "missing") + ", expected " +
+                 str(want));
     };
     expect("bvh_width", h.bvh_width);
     expect("leaf_width", h.leaf_width);
@@ -263,7 +266,8 @@ void Verifier::check_top() {
         }
         ++point_refs[p];
         const fmt::BatchingPointDesc& d = res_.descs[p];
-        if (!inside(box_of(d.lo, d.hi), lane)) out_.add(where + "batching point " + str(p) + ": its bounds are not inside the lane box");
+        if (!inside(box_of(d.lo, d.hi), lane))
+          out_.add(where + "batching point " + str(p) + ": its bounds are not inside the lane box");
         continue;
       }
       if (c >= top.size() || c <= n) {
@@ -301,7 +305,8 @@ void Verifier::segment(const SegmentData& s) {
     const fmt::MeshInfo& mi = res_.meshes[e.id];
     if (mi.segment != s.id) out_.add(what + ": the mesh table puts it in segment " + str(mi.segment));
     if (mesh_in_segment_[e.id]++) out_.add(what + ": stored a second time");
-    if (e.triangles != mi.triangles) out_.add(what + ": " + str(e.triangles) + " triangles, the mesh table says " + str(mi.triangles));
+    if (e.triangles != mi.triangles)
+      out_.add(what + ": " + str(e.triangles) + " triangles, the mesh table says " + str(mi.triangles));
     std::vector<uint8_t> count(mi.triangles, 0);
     std::string bad = coverage(s.prims[k], mi.triangles, count);
     const std::string t = missing(count);
@@ -323,8 +328,10 @@ void Verifier::point(const PointData& p) {
   for (size_t s = 0; s < p.slots.size(); ++s) {
     const uint32_t v = p.slots[s];
     if (v & fmt::kPieceBit) {
-      if ((v & ~fmt::kPieceBit) >= p.entries.size()) out_.add(L + ": mesh slot " + str(s) + " names a missing piece entry");
-      else ++entry_slots[v & ~fmt::kPieceBit];
+      if ((v & ~fmt::kPieceBit) >= p.entries.size())
+        out_.add(L + ": mesh slot " + str(s) + " names a missing piece entry");
+      else
+        ++entry_slots[v & ~fmt::kPieceBit];
     } else if (v >= res_.meshes.size() || res_.meshes[v].segment == kNone) {
       out_.add(L + ": mesh slot " + str(s) + ": mesh " + str(v) + " is not an instanced mesh in a segment");
     } else {
@@ -366,7 +373,8 @@ void Verifier::point(const PointData& p) {
     }
     const fmt::InstanceRef& gref = res_.instances[g];
     const fmt::MeshInfo& mi = res_.meshes[gref.mesh];
-    if (((rec.flags & 1u) != 0) != (det3_of(rec.inverse_linear) < 0)) out_.add(what + ": mirrored flag disagrees with the determinant");
+    if (((rec.flags & 1u) != 0) != (det3_of(rec.inverse_linear) < 0))
+      out_.add(what + ": mirrored flag disagrees with the determinant");
     if (piece) {
       const uint32_t entry = p.slots[rec.mesh] & ~fmt::kPieceBit;
       if (mi.flags & 1u) out_.add(what + ": a piece of instance " + str(g) + ", whose mesh " + str(gref.mesh) + " is instanced");
@@ -388,7 +396,8 @@ void Verifier::point(const PointData& p) {
       instanced_tris += mi.triangles;
       ++instance_seen_[g];
       if (p.slots[rec.mesh] != gref.mesh)
-        out_.add(what + ": mesh " + str(p.slots[rec.mesh]) + ", the instance table says " + str(gref.mesh) + " for instance " + str(g));
+        out_.add(what + ": mesh " + str(p.slots[rec.mesh]) + ", the instance table says " + str(gref.mesh) + " for instance " +
+                 str(g));
       if (gref.point != p.id || gref.local != k)
         out_.add(what + ": instance " + str(g) + ", which " + res_.instances_label + " places in " + place(gref));
     }
@@ -445,8 +454,9 @@ void Verifier::finish() {
     if (home == piece_home_.end() ? ref.point != fmt::InstanceRef::kNoPoint
                                   : ref.point != home->second.point || ref.local != home->second.local)
       out_.add(what + ": the instance table places it in " + place(ref) + ", its first piece is in " +
-               (home == piece_home_.end() ? std::string("no batching point")
-                                          : "batching point " + str(home->second.point) + " (local " + str(home->second.local) + ")"));
+               (home == piece_home_.end()
+                    ? std::string("no batching point")
+                    : "batching point " + str(home->second.point) + " (local " + str(home->second.local) + ")"));
     if (res_.meshes[m].triangles == 0) continue;
     if (unique_cover_[g].empty()) {
       out_.add(what + ": none of its triangles is in a piece");
@@ -467,8 +477,8 @@ void Verifier::finish() {
     expect = uint64_t(id) + 1;
   }
   if (missing_ids)
-    out_.add(str(missing_ids) + (missing_ids == 1 ? " piece id is" : " piece ids are") + " in no batching point (first: " +
-             str(first_missing) + "; the highest id stored is " + str(expect - 1) + ")");
+    out_.add(str(missing_ids) + (missing_ids == 1 ? " piece id is" : " piece ids are") +
+             " in no batching point (first: " + str(first_missing) + "; the highest id stored is " + str(expect - 1) + ")");
   if (res_.meta_ok && res_.meta.contains("pieces") && res_.meta["pieces"] != pieces_)
     out_.add(res_.meta_label + ": \"pieces\" is " + res_.meta["pieces"].dump() + ", the batching points hold " + str(pieces_));
 }

@@ -21,10 +21,9 @@ const char* chunk_kind_name(uint32_t kind) {
 }
 
 std::string chunk_label(const fmt::TocEntry& e, size_t i) {
-  return std::string(chunk_kind_name(e.kind)) + " " + std::to_string(e.id) + " (chunk #" + std::to_string(i) +
-         " at offset " + std::to_string(e.offset) + ")";
+  return std::string(chunk_kind_name(e.kind)) + " " + std::to_string(e.id) + " (chunk #" + std::to_string(i) + " at offset " +
+         std::to_string(e.offset) + ")";
 }
-
 
 void ChunkBuilder::add_raw(fmt::SectionType type, const void* data, size_t count, size_t elem_size) {
   begin_section(type, elem_size);

@@ -46,8 +46,14 @@ class ChunkBuilder {
   void finish_into(AlignedBytes& out) const;
 
  private:
-  struct Piece { const uint8_t* data; size_t bytes; };
-  struct Pending { fmt::SectionEntry e; std::vector<Piece> pieces; };
+  struct Piece {
+    const uint8_t* data;
+    size_t bytes;
+  };
+  struct Pending {
+    fmt::SectionEntry e;
+    std::vector<Piece> pieces;
+  };
   uint32_t kind_;
   std::vector<Pending> sections_;
 };

@@ -35,8 +35,8 @@ uint32_t mult_mod_p(uint32_t a, uint32_t b) {
 }
 
 uint32_t x8n_mod_p(uint64_t n) {  // square-and-multiply over x^(2^k)
-  uint32_t p = 1u << 31;           // x^0
-  uint32_t x2k = 1u << 23;         // x^8: one byte
+  uint32_t p = 1u << 31;          // x^0
+  uint32_t x2k = 1u << 23;        // x^8: one byte
   for (; n; n >>= 1) {
     if (n & 1) p = mult_mod_p(x2k, p);
     x2k = mult_mod_p(x2k, x2k);

@@ -18,21 +18,19 @@
 namespace rtp::voxel {
 namespace {
 
-
 // Population count of an 8-bit mask (the library is built for baseline x86-64: no POPCNT).
 constexpr std::array<uint8_t, 256> make_pop8() {
   std::array<uint8_t, 256> t{};
-  for (int i = 0; i < 256; ++i) t[size_t(i)] = uint8_t((i & 1) + (i >> 1 & 1) + (i >> 2 & 1) + (i >> 3 & 1) + (i >> 4 & 1) +
-                                                        (i >> 5 & 1) + (i >> 6 & 1) + (i >> 7 & 1));
+  for (int i = 0; i < 256; ++i)
+    t[size_t(i)] =
+        uint8_t((i & 1) + (i >> 1 & 1) + (i >> 2 & 1) + (i >> 3 & 1) + (i >> 4 & 1) + (i >> 5 & 1) + (i >> 6 & 1) + (i >> 7 & 1));
   return t;
 }
 constexpr std::array<uint8_t, 256> kPop8 = make_pop8();
 
 int grid_levels(uint32_t resolution) { return std::countr_zero(resolution / 4); }
 
-bool resolution_ok(uint32_t r) {
-  return r >= fmt::kDagMinResolution && r <= fmt::kDagMaxResolution && std::has_single_bit(r);
-}
+bool resolution_ok(uint32_t r) { return r >= fmt::kDagMinResolution && r <= fmt::kDagMaxResolution && std::has_single_bit(r); }
 
 }  // namespace
 
@@ -43,7 +41,8 @@ namespace {
 template <int W>
 std::string check_boxes(const fmt::DagGrid& g, const DagView& v, std::vector<uint8_t>& seen) {
   const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
-  if (g.root >= v.cull_count) return "instance boxes: first node " + std::to_string(g.root) + " out of range (" + std::to_string(v.cull_count) + " nodes)";
+  if (g.root >= v.cull_count)
+    return "instance boxes: first node " + std::to_string(g.root) + " out of range (" + std::to_string(v.cull_count) + " nodes)";
   if (seen.size() != v.cull_count) seen.assign(v.cull_count, 0);
   std::vector<uint64_t> pending{g.root};
   while (!pending.empty()) {
@@ -75,7 +74,9 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
       case 4: return check_boxes<4>(g, v, box_seen);
       case 8: return check_boxes<8>(g, v, box_seen);
       case 16: return check_boxes<16>(g, v, box_seen);
-      default: return "instance boxes but no instance-box nodes (section " + std::to_string(uint32_t(fmt::SectionType::kCullNodes)) + ")";
+      default:
+        return "instance boxes but no instance-box nodes (section " + std::to_string(uint32_t(fmt::SectionType::kCullNodes)) +
+               ")";
     }
   }
   if (!resolution_ok(g.resolution)) return "resolution " + std::to_string(g.resolution) + " is not a power of two in [4, 1024]";
@@ -96,7 +97,10 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
   if (levels == 0) return bad_leaf(g.root) ? leaf_error(g.root) : "";
   // `seen`: visited (offset, level) pairs, one bit per level per word (levels <= 8), shared by the
   // grids of one pool so a node reachable from many batching points is checked once.
-  struct Item { uint32_t off; int level; };
+  struct Item {
+    uint32_t off;
+    int level;
+  };
   std::vector<Item> pending{{g.root, levels}};
   auto at = [](const Item& it) { return "node at word " + std::to_string(it.off) + " (level " + std::to_string(it.level) + ")"; };
   while (!pending.empty()) {
@@ -186,7 +190,6 @@ double dag_ray_growth(const fmt::DagGrid& g, const double org[3]) {
 
 namespace {
 
-
 // kOctantPerm[o][m]: bit i set when child i ^ o is in m (children renumbered in the octant order).
 constexpr std::array<std::array<uint8_t, 256>, 8> make_perm() {
   std::array<std::array<uint8_t, 256>, 8> t{};
@@ -222,8 +225,7 @@ namespace {
 // float kernels' rounding is ~1e-7 of those): every box the point's instance walk may hit is hit here.
 // A NaN anywhere counts as a hit, and so does a tree deeper than the fixed stack (no allocation).
 template <int W>
-bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const double o[3], const double d[3], double tnear,
-                      double tfar) {
+bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const double o[3], const double d[3], double tnear, double tfar) {
   const auto* nodes = static_cast<const fmt::CullNode<W>*>(v.cull);
   const double tn = tnear - 1e-5 * std::fabs(tnear), tf = tfar + 1e-5 * std::fabs(tfar);
   constexpr int kStack = 64;
@@ -238,7 +240,8 @@ bool any_instance_box(const fmt::DagGrid& g, const DagView& v, const double o[3]
       double t0 = tn, t1 = tf;
       bool miss = false;
       for (int k = 0; k < 3; ++k) {
-        const double lo = fmt::cull_plane(n.origin[k], n.scale[k], n.lo[k][l]), hi = fmt::cull_plane(n.origin[k], n.scale[k], n.hi[k][l]);
+        const double lo = fmt::cull_plane(n.origin[k], n.scale[k], n.lo[k][l]),
+                     hi = fmt::cull_plane(n.origin[k], n.scale[k], n.hi[k][l]);
         const double pad = 1e-5 * (std::fabs(lo) + std::fabs(hi) + std::fabs(o[k]));
         if (d[k] == 0) {
           miss |= o[k] < lo - pad || o[k] > hi + pad;
@@ -264,7 +267,7 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
                        double tfar) {
   DagHit out;
   if (g.resolution == fmt::kDagBoxes) {  // 7.0: instance boxes, no entry distance (tnear as it is)
-    bool any = true;  // without nodes nothing is culled (check_dags refuses that package)
+    bool any = true;                     // without nodes nothing is culled (check_dags refuses that package)
     switch (v.cull ? v.cull_width : 0) {
       case 4: any = any_instance_box<4>(g, v, org, dir, tnear, tfar); break;
       case 8: any = any_instance_box<8>(g, v, org, dir, tnear, tfar); break;
@@ -298,10 +301,10 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   const float t_hi = double(tf) >= tfar ? tf : std::nextafter(tf, kInfF);
   enum Kind : uint8_t { kNode, kLeaf, kInline, kSub, kSet };
   struct Entry {
-    uint32_t ref;          // node word offset, leaf index, inline leaf's word offset, or a sub-block's 8 cell bits
-    uint16_t x, y, z;      // cell coordinates of the region's minimum corner
-    uint8_t kind, level;   // level: DAG level of a kNode (>= 1); size = 4 << level cells
-    float t;               // entry distance of the grown region
+    uint32_t ref;         // node word offset, leaf index, inline leaf's word offset, or a sub-block's 8 cell bits
+    uint16_t x, y, z;     // cell coordinates of the region's minimum corner
+    uint8_t kind, level;  // level: DAG level of a kNode (>= 1); size = 4 << level cells
+    float t;              // entry distance of the grown region
   };
   auto size_of = [](const Entry& e) -> uint32_t {
     return e.kind == kNode ? 4u << e.level : e.kind <= kInline ? 4u : e.kind == kSub ? 2u : 1u << e.level;
@@ -347,7 +350,8 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
     __m128 n_lo = _mm_set1_ps(t_lo), n_hi = n_lo, f_lo = _mm_set1_ps(t_hi), f_hi = f_lo;
     for (int k = 0; k < 3; ++k) {
       const float mid = float(c[k] + half);
-      const __m128 planes = _mm_add_ps(_mm_setr_ps(float(c[k]), mid, mid, float(c[k] + size)), _mm_mul_ps(_mm_set1_ps(delta), kSigns));
+      const __m128 planes =
+          _mm_add_ps(_mm_setr_ps(float(c[k]), mid, mid, float(c[k] + size)), _mm_mul_ps(_mm_set1_ps(delta), kSigns));
       __m128 mn, mx;
       if (zero[k]) {  // containment decides: (-inf, inf) or an empty slab
         const float o = og[k];
@@ -375,8 +379,8 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
       n_lo = _mm_max_ps(n_lo, lo_n), n_hi = _mm_max_ps(n_hi, hi_n);
       f_lo = _mm_min_ps(f_lo, lo_f), f_hi = _mm_min_ps(f_hi, hi_f);
     }
-    const uint32_t hit = uint32_t(_mm_movemask_ps(_mm_cmple_ps(n_lo, f_lo))) |
-                         uint32_t(_mm_movemask_ps(_mm_cmple_ps(n_hi, f_hi))) << 4;
+    const uint32_t hit = uint32_t(_mm_movemask_ps(_mm_cmple_ps(n_lo, f_lo))) | uint32_t(_mm_movemask_ps(_mm_cmple_ps(n_hi, f_hi)))
+                                                                                   << 4;
     alignas(16) float tc[8];
     _mm_store_ps(tc, n_lo);
     _mm_store_ps(tc + 4, n_hi);
@@ -421,7 +425,6 @@ DagHit dag_first_entry(const fmt::DagGrid& g, const DagView& v, const double org
   }
   return out;
 }
-
 
 bool dag_enter(const fmt::DagGrid& grid, const DagView& pool, fmt::Ray& ray) {
   const double org[3] = {ray.org[0], ray.org[1], ray.org[2]}, dir[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};

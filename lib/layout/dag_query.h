@@ -45,8 +45,8 @@ double dag_ray_growth(const fmt::DagGrid& grid, const double org[3]);
 // Front-to-back DFS over the DAG with the eight child boxes tested together, clipped to
 // [tnear, tfar] (fixed stack, no allocation); for an instance-box grid, culled or t_entry = tnear.
 // Requires check_dag() to have passed.
-DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3],
-                       double tnear, double tfar);
+DagHit dag_first_entry(const fmt::DagGrid& grid, const DagView& pool, const double org[3], const double dir[3], double tnear,
+                       double tfar);
 // Molenaar 2019 §4.2, as both package tracers apply it before walking a batching point's BVH: false
 // when the ray is culled; otherwise ray.tnear is raised to the entry distance rounded down to float
 // (no hit of the point's geometry lies before it).

@@ -19,8 +19,7 @@ inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t cou
   for (int a = 0; a < 3; ++a) {
     if (r.translation[a] != 0) return kNoDirectInstance;
     for (int b = 0; b < 3; ++b)
-      if (r.inverse_linear[3 * a + b] != (a == b ? 1.0f : 0.0f))
-        return kNoDirectInstance;
+      if (r.inverse_linear[3 * a + b] != (a == b ? 1.0f : 0.0f)) return kNoDirectInstance;
   }
   return 0;
 }
@@ -32,8 +31,8 @@ inline uint32_t direct_instance(const fmt::InstanceRecord* records, uint64_t cou
 // and 1/dir' is ±1/dir.
 struct AxisMove {
   enum Kind : uint8_t { kGeneral = 0, kNone = 1, kAxes = 2 };  // kNone: T = 0 and L^-1 = I exactly
-  uint8_t axis[3];  // row r of L^-1 has its one nonzero entry in column axis[r]
-  uint8_t neg;      // bit r: that entry is -1
+  uint8_t axis[3];                                             // row r of L^-1 has its one nonzero entry in column axis[r]
+  uint8_t neg;                                                 // bit r: that entry is -1
   uint8_t kind;
 };
 
@@ -84,9 +83,9 @@ template <int W, int B>
 struct SceneView {
   const fmt::WideNode<W>* top_nodes = nullptr;
   uint32_t top_root = fmt::ChildRef::kEmpty;
-  const uint32_t* top_instances = nullptr;     // instance indices referenced by top-level leaves
+  const uint32_t* top_instances = nullptr;  // instance indices referenced by top-level leaves
   const fmt::InstanceRecord* instances = nullptr;
-  const MeshBvhView<W, B>* meshes = nullptr;   // indexed by InstanceRecord::mesh
+  const MeshBvhView<W, B>* meshes = nullptr;  // indexed by InstanceRecord::mesh
   // The scene's only instance when its record is the identity (direct_instance()): rays walk its mesh
   // in world space and skip the instance level (issue 11). The answers are the same bit for bit.
   uint32_t direct = kNoDirectInstance;

@@ -53,8 +53,7 @@ int64_t cell_of(float c, double eps) {
 // Same attributes: bitwise equal normal and uv, each compared only when its array is present. A
 // normal or uv seam (hard edge, UV island border) has coincident vertices that must stay apart.
 bool same_attributes(const Mesh& mesh, uint32_t a, uint32_t b) {
-  if (!mesh.normals.empty() && std::memcmp(&mesh.normals[a], &mesh.normals[b], sizeof(Vec3f)) != 0)
-    return false;
+  if (!mesh.normals.empty() && std::memcmp(&mesh.normals[a], &mesh.normals[b], sizeof(Vec3f)) != 0) return false;
   return mesh.uvs.empty() || std::memcmp(&mesh.uvs[a], &mesh.uvs[b], sizeof(Vec2f)) == 0;
 }
 
@@ -62,8 +61,7 @@ bool same_attributes(const Mesh& mesh, uint32_t a, uint32_t b) {
 // representative within eps (L-infinity) with the same attributes found in the 27 neighbouring
 // cells, or becomes a representative itself. Merging is never transitive (every merged vertex is
 // within eps of its representative), and the result does not depend on hash-map iteration order.
-uint64_t weld_vertices(const Mesh& mesh, const std::vector<char>& referenced, double eps,
-                       std::vector<uint32_t>& remap) {
+uint64_t weld_vertices(const Mesh& mesh, const std::vector<char>& referenced, double eps, std::vector<uint32_t>& remap) {
   remap.resize(mesh.positions.size());
   for (uint32_t v = 0; v < remap.size(); ++v) remap[v] = v;
   std::unordered_map<CellKey, std::vector<uint32_t>, CellHash> grid;
@@ -186,8 +184,7 @@ void analyze_with_openmesh(const Mesh& mesh, CleanReport& report) {
   vh.reserve(mesh.positions.size());
   for (const Vec3f& p : mesh.positions) vh.push_back(om.add_vertex(OmMesh::Point(p.x, p.y, p.z)));
   for (size_t t = 0; t < mesh.indices.size(); t += 3) {
-    OmMesh::FaceHandle f =
-        om.add_face(vh[mesh.indices[t]], vh[mesh.indices[t + 1]], vh[mesh.indices[t + 2]]);
+    OmMesh::FaceHandle f = om.add_face(vh[mesh.indices[t]], vh[mesh.indices[t + 1]], vh[mesh.indices[t + 2]]);
     if (!f.is_valid()) ++report.nonmanifold_faces;
   }
   for (OmMesh::VertexHandle v : om.vertices())
@@ -198,8 +195,7 @@ void analyze_with_openmesh(const Mesh& mesh, CleanReport& report) {
 
 CleanReport clean_mesh(Mesh& mesh, const CleanOptions& opt) {
   mesh_detail::validate_mesh(mesh, "clean_mesh");
-  if (!(opt.weld_eps < 0) && !std::isfinite(opt.weld_eps))
-    throw Error(ExitCode::kUsage, "clean_mesh: weld_eps must be finite");
+  if (!(opt.weld_eps < 0) && !std::isfinite(opt.weld_eps)) throw Error(ExitCode::kUsage, "clean_mesh: weld_eps must be finite");
   CleanReport report;
   const uint32_t tri_count = uint32_t(mesh.indices.size() / 3);
   const uint64_t old_vertices = mesh.positions.size();

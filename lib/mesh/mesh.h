@@ -52,8 +52,8 @@ CleanReport clean_mesh(Mesh& mesh, const CleanOptions& opt = {});
 // ---- subdivide.cpp ------------------------------------------------------------------------------
 
 struct UniformSubdivideResult {
-  int levels = 0;             // levels applied (= the requested levels)
-  bool used_fallback = false; // OpenSubdiv refused the topology: midpoint (linear) 1-to-4 split used
+  int levels = 0;              // levels applied (= the requested levels)
+  bool used_fallback = false;  // OpenSubdiv refused the topology: midpoint (linear) 1-to-4 split used
   std::string fallback_reason;
 };
 
@@ -75,11 +75,11 @@ double longest_edge(const Mesh& mesh);
 
 struct MeshSubdivideReport {
   uint32_t mesh = 0;
-  bool instanced = false;        // false: no instance references the mesh, left alone
-  double max_scale = 0;          // largest Affine3x4::max_scale() over its instances
-  int levels = 0;                // uniform Loop levels applied
-  bool hit_cap = false;          // still >= the target after max_levels
-  bool used_fallback = false;    // some level used the midpoint fallback
+  bool instanced = false;      // false: no instance references the mesh, left alone
+  double max_scale = 0;        // largest Affine3x4::max_scale() over its instances
+  int levels = 0;              // uniform Loop levels applied
+  bool hit_cap = false;        // still >= the target after max_levels
+  bool used_fallback = false;  // some level used the midpoint fallback
   uint64_t triangles_before = 0, triangles_after = 0;
   double longest_world_edge_before = 0, longest_world_edge_after = 0;
 };

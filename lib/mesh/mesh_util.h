@@ -13,8 +13,8 @@ namespace rtp::mesh_detail {
 // entry per triangle, and each attribute array (normals, uvs) is empty or one entry per position.
 inline void validate_mesh(const Mesh& mesh, const char* what) {
   if (mesh.indices.size() % 3 != 0)
-    fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' has " +
-                 std::to_string(mesh.indices.size()) + " indices, not a multiple of 3");
+    fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' has " + std::to_string(mesh.indices.size()) +
+                 " indices, not a multiple of 3");
   const uint64_t n = mesh.positions.size();
   for (size_t i = 0; i < mesh.indices.size(); ++i)
     if (mesh.indices[i] >= n)
@@ -25,8 +25,8 @@ inline void validate_mesh(const Mesh& mesh, const char* what) {
                  " source entries for " + std::to_string(mesh.indices.size() / 3) + " triangles");
   auto check_attribute = [&](size_t size, const char* name) {
     if (size != 0 && size != n)
-      fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' has " + std::to_string(size) + " " +
-                   name + " for " + std::to_string(n) + " positions");
+      fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' has " + std::to_string(size) + " " + name + " for " +
+                   std::to_string(n) + " positions");
   };
   check_attribute(mesh.normals.size(), "normals");
   check_attribute(mesh.uvs.size(), "uvs");

@@ -76,7 +76,8 @@ PrepareReport prepare_scene(Scene& scene, const PrepareOptions& opt) {
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (scene.meshes[m].triangle_count() == 0) {
       ++rep.meshes_emptied;
-      scene.warnings.push_back("mesh '" + scene.meshes[m].name + "': no triangle left after clean-up; dropped with its instances");
+      scene.warnings.push_back("mesh '" + scene.meshes[m].name +
+                               "': no triangle left after clean-up; dropped with its instances");
       continue;
     }
     remap[m] = uint32_t(kept.size());
@@ -137,14 +138,16 @@ nlohmann::json prepare_report_json(const PrepareReport& r) {
   if (r.adaptive) {
     nlohmann::json per = nlohmann::json::array();
     for (const auto& m : r.subdivide.meshes)
-      per.push_back({{"mesh", m.mesh}, {"levels", m.levels}, {"hit_cap", m.hit_cap},
-                     {"max_scale", m.max_scale}, {"triangles_before", m.triangles_before},
+      per.push_back({{"mesh", m.mesh},
+                     {"levels", m.levels},
+                     {"hit_cap", m.hit_cap},
+                     {"max_scale", m.max_scale},
+                     {"triangles_before", m.triangles_before},
                      {"triangles_after", m.triangles_after},
                      {"longest_world_edge_before", m.longest_world_edge_before},
                      {"longest_world_edge_after", m.longest_world_edge_after}});
-    j["adaptive"] = {{"meshes_subdivided", r.subdivide.meshes_subdivided},
-                     {"meshes_at_cap", r.subdivide.meshes_at_cap},
-                     {"per_mesh", per}};
+    j["adaptive"] = {
+        {"meshes_subdivided", r.subdivide.meshes_subdivided}, {"meshes_at_cap", r.subdivide.meshes_at_cap}, {"per_mesh", per}};
   }
   return j;
 }
@@ -154,8 +157,8 @@ std::string prepare_report_text(const PrepareReport& r) {
   std::string o = "preparation\n";
   o += "  removed              " + to_string(r.clean.degenerate_removed) + " degenerate, " +
        to_string(r.clean.nonfinite_removed) + " non-finite triangles\n";
-  o += "  vertices             " + to_string(r.clean.welded_vertices) + " welded, " +
-       to_string(r.clean.unused_vertices_removed) + " unused removed\n";
+  o += "  vertices             " + to_string(r.clean.welded_vertices) + " welded, " + to_string(r.clean.unused_vertices_removed) +
+       " unused removed\n";
   o += "  topology             " + to_string(r.clean.nonmanifold_edges) + " non-manifold edges, " +
        to_string(r.clean.boundary_edges) + " boundary edges (reported, kept)\n";
   if (r.clean.topology_analysed)

@@ -10,8 +10,8 @@ namespace rtp {
 
 struct PrepareOptions {
   CleanOptions clean;
-  int subdivide_levels = 0;   // uniform Loop levels (--subdivide N)
-  double subdivide_to = 0;    // > 0: adaptive, longest world edge below this (--subdivide-to LENGTH)
+  int subdivide_levels = 0;  // uniform Loop levels (--subdivide N)
+  double subdivide_to = 0;   // > 0: adaptive, longest world edge below this (--subdivide-to LENGTH)
   int subdivide_max_levels = 6;
   // Memory a uniform subdivision may need, in bytes; 0 = this machine's (machine_memory_bytes()).
   uint64_t memory_bytes = 0;
@@ -21,12 +21,12 @@ struct PrepareOptions {
 uint64_t machine_memory_bytes();
 
 struct PrepareReport {
-  CleanReport clean;               // summed over meshes
-  uint64_t meshes_emptied = 0;     // meshes with no triangle left after cleaning (dropped with their instances)
+  CleanReport clean;            // summed over meshes
+  uint64_t meshes_emptied = 0;  // meshes with no triangle left after cleaning (dropped with their instances)
   int uniform_levels = 0;
   uint64_t uniform_fallbacks = 0;  // meshes where OpenSubdiv refused the topology (midpoint split used)
   bool adaptive = false;
-  SubdivideReport subdivide;       // adaptive mode only
+  SubdivideReport subdivide;                           // adaptive mode only
   uint64_t triangles_before = 0, triangles_after = 0;  // unique triangles
 };
 

@@ -23,17 +23,14 @@ Mesh finish(std::string name, std::vector<Vec3f> positions, std::vector<uint32_t
 }  // namespace
 
 Mesh make_tetrahedron() {
-  return finish("tetrahedron", {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}},
-                {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2});
+  return finish("tetrahedron", {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}}, {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2});
 }
 
 Mesh make_cube(double h) {
   std::vector<Vec3f> p;
-  for (int i = 0; i < 8; ++i)
-    p.push_back({float(i & 1 ? h : -h), float(i & 2 ? h : -h), float(i & 4 ? h : -h)});
+  for (int i = 0; i < 8; ++i) p.push_back({float(i & 1 ? h : -h), float(i & 2 ? h : -h), float(i & 4 ? h : -h)});
   // Faces as quads (CCW seen from outside), two triangles each.
-  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                                {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   std::vector<uint32_t> idx;
   for (const auto& q : quads)
     for (uint32_t v : {q[0], q[1], q[2], q[0], q[2], q[3]}) idx.push_back(v);
@@ -42,9 +39,9 @@ Mesh make_cube(double h) {
 
 Mesh make_icosphere(int subdivisions) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Vec3d> p = {{-1, t, 0}, {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+  std::vector<Vec3d> p = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  std::vector<uint32_t> idx = {0, 11, 5, 0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
+  std::vector<uint32_t> idx = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
                                4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
                                6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
   for (Vec3d& v : p) v = v * (1.0 / length(v));

@@ -40,8 +40,8 @@ inline int bin_index(double c, double lo, double scale) {
 // Best binned SAH plane over [begin, end): returns false when no plane puts centroids on both sides.
 // On success, `axis` and `split_bin` (left = bins [0, split_bin)) describe it, with the binning of
 // `cbox`. Ties keep the first (axis x before y before z, lower plane first): deterministic.
-bool find_sah_split(const std::vector<Prim>& prims, const uint32_t* begin, const uint32_t* end,
-                    const Aabb& cbox, int& axis, int& split_bin) {
+bool find_sah_split(const std::vector<Prim>& prims, const uint32_t* begin, const uint32_t* end, const Aabb& cbox, int& axis,
+                    int& split_bin) {
   // The three axes binned in one pass over the range (each axis's bins get the same primitives in the
   // same order as a pass per axis, so the same boxes): a pass per axis read every primitive 3 times.
   double scale[3];

@@ -55,8 +55,7 @@ Vec3f unit_normal(const Vec3d& n) {
 
 // Interpolates one vertex primvar from the base level to `levels` (vertex rules, as positions).
 template <int N>
-std::vector<DPrimvar<N>> refine_primvar(const Far::TopologyRefiner& refiner, int levels,
-                                        std::vector<DPrimvar<N>> src) {
+std::vector<DPrimvar<N>> refine_primvar(const Far::TopologyRefiner& refiner, int levels, std::vector<DPrimvar<N>> src) {
   Far::PrimvarRefinerReal<double> primvar(refiner);
   std::vector<DPrimvar<N>> dst;
   for (int level = 1; level <= levels; ++level) {
@@ -72,14 +71,13 @@ std::vector<DPrimvar<N>> refine_primvar(const Far::TopologyRefiner& refiner, int
 void check_size(const Mesh& mesh, int levels, const char* what) {
   double tris = double(mesh.triangle_count()) * std::pow(4.0, levels);
   if (tris * 3 > double(INT_MAX) || double(mesh.positions.size()) + tris * 3 > double(INT_MAX))
-    fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' would have " + std::to_string(tris) +
-                 " triangles after " + std::to_string(levels) + " levels, too many");
+    fail_invalid(std::string(what) + ": mesh '" + mesh.name + "' would have " + std::to_string(tris) + " triangles after " +
+                 std::to_string(levels) + " levels, too many");
 }
 
 void check_levels(int levels, const char* what) {
   if (levels < 0 || levels > 15)
-    throw Error(ExitCode::kUsage, std::string(what) + ": levels must be in [0, 15], got " +
-                                      std::to_string(levels));
+    throw Error(ExitCode::kUsage, std::string(what) + ": levels must be in [0, 15], got " + std::to_string(levels));
 }
 
 // Returns the refiner, or nullptr (with the reason) when OpenSubdiv refuses the topology.
@@ -113,8 +111,7 @@ void apply_loop(Mesh& mesh, Far::TopologyRefiner& refiner, int levels) {
 
   // Positions, level by level (double), from the float base positions; the attributes likewise.
   std::vector<DVertex> src(mesh.positions.size());
-  for (size_t v = 0; v < mesh.positions.size(); ++v)
-    src[v] = {{mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z}};
+  for (size_t v = 0; v < mesh.positions.size(); ++v) src[v] = {{mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z}};
   src = refine_primvar(refiner, levels, std::move(src));
   std::vector<Vec3f> normals;
   if (!mesh.normals.empty()) {
@@ -159,8 +156,7 @@ void apply_loop(Mesh& mesh, Far::TopologyRefiner& refiner, int levels) {
     if (!mesh.source.empty()) source.push_back(mesh.source[size_t(root[f])]);
   }
   std::vector<Vec3f> positions(src.size());
-  for (size_t v = 0; v < src.size(); ++v)
-    positions[v] = {float(src[v].p[0]), float(src[v].p[1]), float(src[v].p[2])};
+  for (size_t v = 0; v < src.size(); ++v) positions[v] = {float(src[v].p[0]), float(src[v].p[1]), float(src[v].p[2])};
   mesh.positions = std::move(positions);
   mesh.normals = std::move(normals);
   mesh.uvs = std::move(uvs);
@@ -183,8 +179,8 @@ void midpoint_level(Mesh& mesh) {
       mesh.positions.push_back({float(m.x), float(m.y), float(m.z)});
       if (has_normals) mesh.normals.push_back(unit_normal(to_d(mesh.normals[a]) + to_d(mesh.normals[b])));
       if (has_uvs)
-        mesh.uvs.push_back({float((double(mesh.uvs[a].x) + mesh.uvs[b].x) * 0.5),
-                            float((double(mesh.uvs[a].y) + mesh.uvs[b].y) * 0.5)});
+        mesh.uvs.push_back(
+            {float((double(mesh.uvs[a].x) + mesh.uvs[b].x) * 0.5), float((double(mesh.uvs[a].y) + mesh.uvs[b].y) * 0.5)});
     }
     return it->second;
   };
@@ -255,33 +251,32 @@ SubdivideReport subdivide_to_length(Scene& scene, double max_edge_length, int ma
   for (size_t i = 0; i < scene.instances.size(); ++i) {
     const Instance& inst = scene.instances[i];
     if (inst.mesh >= scene.meshes.size())
-      fail_invalid("subdivide_to_length: instance " + std::to_string(i) + " references mesh " +
-                   std::to_string(inst.mesh) + " of " + std::to_string(scene.meshes.size()));
+      fail_invalid("subdivide_to_length: instance " + std::to_string(i) + " references mesh " + std::to_string(inst.mesh) +
+                   " of " + std::to_string(scene.meshes.size()));
     MeshSubdivideReport& r = report.meshes[inst.mesh];
     r.instanced = true;
     r.max_scale = std::max(r.max_scale, inst.transform.max_scale());
   }
 
   // Each mesh once, independently: the outcome per mesh does not depend on scheduling.
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, scene.meshes.size(), 1),
-                    [&](const tbb::blocked_range<size_t>& range) {
-                      for (size_t m = range.begin(); m != range.end(); ++m) {
-                        Mesh& mesh = scene.meshes[m];
-                        MeshSubdivideReport& r = report.meshes[m];
-                        r.triangles_before = r.triangles_after = mesh.triangle_count();
-                        r.longest_world_edge_before = longest_edge(mesh) * r.max_scale;
-                        r.longest_world_edge_after = r.longest_world_edge_before;
-                        if (!r.instanced || r.longest_world_edge_before < max_edge_length) continue;
-                        while (r.levels < max_levels && !(r.longest_world_edge_after < max_edge_length)) {
-                          UniformSubdivideResult u = subdivide_uniform(mesh, 1);
-                          r.used_fallback = r.used_fallback || u.used_fallback;
-                          ++r.levels;
-                          r.longest_world_edge_after = longest_edge(mesh) * r.max_scale;
-                        }
-                        r.hit_cap = !(r.longest_world_edge_after < max_edge_length);
-                        r.triangles_after = mesh.triangle_count();
-                      }
-                    });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, scene.meshes.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t m = range.begin(); m != range.end(); ++m) {
+      Mesh& mesh = scene.meshes[m];
+      MeshSubdivideReport& r = report.meshes[m];
+      r.triangles_before = r.triangles_after = mesh.triangle_count();
+      r.longest_world_edge_before = longest_edge(mesh) * r.max_scale;
+      r.longest_world_edge_after = r.longest_world_edge_before;
+      if (!r.instanced || r.longest_world_edge_before < max_edge_length) continue;
+      while (r.levels < max_levels && !(r.longest_world_edge_after < max_edge_length)) {
+        UniformSubdivideResult u = subdivide_uniform(mesh, 1);
+        r.used_fallback = r.used_fallback || u.used_fallback;
+        ++r.levels;
+        r.longest_world_edge_after = longest_edge(mesh) * r.max_scale;
+      }
+      r.hit_cap = !(r.longest_world_edge_after < max_edge_length);
+      r.triangles_after = mesh.triangle_count();
+    }
+  });
 
   for (const MeshSubdivideReport& r : report.meshes) {
     report.meshes_subdivided += r.levels > 0;

@@ -14,7 +14,6 @@
 namespace rtp {
 namespace {
 
-
 bool is_hit(const fmt::Hit& h) { return h.t < kInf; }  // NaN t is rejected first by classify_hit
 
 std::string hit_str(const fmt::Hit& h) {
@@ -22,8 +21,8 @@ std::string hit_str(const fmt::Hit& h) {
   if (!(h.t < kInf) && !std::isnan(h.t))
     std::snprintf(buf, sizeof buf, "miss (t=%.9g inst=%" PRIu32 " prim=%" PRIu32 ")", double(h.t), h.instance, h.prim);
   else
-    std::snprintf(buf, sizeof buf, "t=%.9g inst=%" PRIu32 " prim=%" PRIu32 " u=%.9g v=%.9g (1-u-v=%.3g)", double(h.t),
-                  h.instance, h.prim, double(h.u), double(h.v), 1.0 - double(h.u) - double(h.v));
+    std::snprintf(buf, sizeof buf, "t=%.9g inst=%" PRIu32 " prim=%" PRIu32 " u=%.9g v=%.9g (1-u-v=%.3g)", double(h.t), h.instance,
+                  h.prim, double(h.u), double(h.v), 1.0 - double(h.u) - double(h.v));
   return buf;
 }
 
@@ -58,7 +57,7 @@ double inf_norm(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y),
 // ray origin, hit point, instance translation + scaled local vertices.
 struct HitGeometry {
   Vec3d w[3];
-  Vec3d p;       // ray point at the hit's t
+  Vec3d p;  // ray point at the hit's t
   double mag = 0;
 };
 
@@ -106,8 +105,7 @@ bool near_edge_in_precision(const Scene& scene, const fmt::Ray& ray, const fmt::
   return false;
 }
 
-bool same_surface_in_precision(const Scene& scene, const fmt::Ray& ray, const fmt::Hit& ref, const fmt::Hit& got,
-                               double rel) {
+bool same_surface_in_precision(const Scene& scene, const fmt::Ray& ray, const fmt::Hit& ref, const fmt::Hit& got, double rel) {
   HitGeometry a, b;
   if (!hit_geometry(scene, ray, ref, a) || !hit_geometry(scene, ray, got, b)) return false;
   const double delta = rel * std::max(a.mag, b.mag);
@@ -152,11 +150,11 @@ std::string RayDiff::describe() const {
   const auto b = ray_bits(ray);
   std::snprintf(buf, sizeof buf,
                 "ray #%zu [%s]\n  org=(%.9g, %.9g, %.9g) dir=(%.9g, %.9g, %.9g) tnear=%.9g tfar=%.9g\n"
-                "  bits={0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32
-                ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 "}  (rtp::ray_from_bits)\n",
-                index, verdict_name(verdict), double(ray.org[0]), double(ray.org[1]), double(ray.org[2]),
-                double(ray.dir[0]), double(ray.dir[1]), double(ray.dir[2]), double(ray.tnear), double(ray.tfar), b[0],
-                b[1], b[2], b[3], b[4], b[5], b[6], b[7]);
+                "  bits={0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32 ", 0x%08" PRIx32
+                ", 0x%08" PRIx32 ", 0x%08" PRIx32 "}  (rtp::ray_from_bits)\n",
+                index, verdict_name(verdict), double(ray.org[0]), double(ray.org[1]), double(ray.org[2]), double(ray.dir[0]),
+                double(ray.dir[1]), double(ray.dir[2]), double(ray.tnear), double(ray.tfar), b[0], b[1], b[2], b[3], b[4], b[5],
+                b[6], b[7]);
   return std::string(buf) + "  ref: " + hit_str(ref) + "\n  got: " + hit_str(got) + "\n";
 }
 
@@ -182,8 +180,8 @@ std::string CompareReport::summary() const {
   std::snprintf(buf, sizeof buf,
                 "%" PRIu64 " rays: %" PRIu64 " agree (%" PRIu64 " both miss, %" PRIu64 " both hit, %" PRIu64
                 " of them other prim at same t), %" PRIu64 " edge ties, %" PRIu64 " precision ties, %" PRIu64
-                " FAILURES (%" PRIu64 " missed, %" PRIu64 " extra, %" PRIu64 " other t), %" PRIu64
-                " skipped, %" PRIu64 " reference errors settled by the double reference",
+                " FAILURES (%" PRIu64 " missed, %" PRIu64 " extra, %" PRIu64 " other t), %" PRIu64 " skipped, %" PRIu64
+                " reference errors settled by the double reference",
                 rays, agree(), both_miss, both_hit, same_t_other_prim, edge_ties, precision_ties, failures, fail_missed,
                 fail_extra, fail_t, skipped, reference_errors);
   return buf;
@@ -196,8 +194,8 @@ std::string CompareReport::details() const {
   return s;
 }
 
-CompareReport compare_closest(const fmt::Ray* rays, const fmt::Hit* ref, const fmt::Hit* got, size_t n,
-                              const CompareOptions& o, const uint8_t* skip) {
+CompareReport compare_closest(const fmt::Ray* rays, const fmt::Hit* ref, const fmt::Hit* got, size_t n, const CompareOptions& o,
+                              const uint8_t* skip) {
   CompareReport rep;
   rep.rays = n;
   std::vector<Verdict> verdict(n, Verdict::kSkipped);
@@ -248,9 +246,12 @@ CompareReport compare_closest(const fmt::Ray* rays, const fmt::Hit* ref, const f
         break;
       default:
         ++rep.failures;
-        if (rh && !gh) ++rep.fail_missed;
-        else if (!rh && gh) ++rep.fail_extra;
-        else ++rep.fail_t;
+        if (rh && !gh)
+          ++rep.fail_missed;
+        else if (!rh && gh)
+          ++rep.fail_extra;
+        else
+          ++rep.fail_t;
         keep(rep.first_failures, o.max_examples, {i, Verdict::kFail, rays[i], r, got[i]});
         break;
     }

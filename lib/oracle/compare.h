@@ -88,9 +88,9 @@ struct CompareReport {
   uint64_t edge_ties = 0;
   uint64_t precision_ties = 0;
   uint64_t failures = 0;
-  uint64_t fail_missed = 0;  ///< failures where the reference hits and the candidate misses
-  uint64_t fail_extra = 0;   ///< failures where the reference misses and the candidate hits
-  uint64_t fail_t = 0;       ///< failures where both hit at different t
+  uint64_t fail_missed = 0;       ///< failures where the reference hits and the candidate misses
+  uint64_t fail_extra = 0;        ///< failures where the reference misses and the candidate hits
+  uint64_t fail_t = 0;            ///< failures where both hit at different t
   uint64_t reference_errors = 0;  ///< disagreements the double reference settled for the candidate
   std::vector<RayDiff> first_failures;
   std::vector<RayDiff> first_ties;

@@ -8,8 +8,7 @@ namespace rtp::oracle_detail {
 
 // Slab test in double on a padded box, widened by a relative 1e-9 in t: true when the ray may pass the
 // box within [t0, t1]. Conservative: it only skips work, so it must never cut a hit.
-inline bool slab_may_hit(const double o[3], const double d[3], const double lo[3], const double hi[3], double t0,
-                         double t1) {
+inline bool slab_may_hit(const double o[3], const double d[3], const double lo[3], const double hi[3], double t0, double t1) {
   for (int a = 0; a < 3; ++a) {
     if (d[a] == 0) {
       if (o[a] < lo[a] || o[a] > hi[a]) return false;
@@ -37,9 +36,8 @@ inline void pad_box(double lo[3], double hi[3]) {
 
 // Moller & Trumbore 1997 "Fast, Minimum Storage Ray/Triangle Intersection" §2, in double, two-sided:
 // the hit (t, u, v) with u, v the weights of v0 + e1, v0 + e2, when t is in [tnear, tfar].
-inline bool moller_trumbore(const double o[3], const double d[3], const double v0[3], const double e1[3],
-                            const double e2[3], double tnear, double tfar, double* t_out, double* u_out,
-                            double* v_out) {
+inline bool moller_trumbore(const double o[3], const double d[3], const double v0[3], const double e1[3], const double e2[3],
+                            double tnear, double tfar, double* t_out, double* u_out, double* v_out) {
   const double px = d[1] * e2[2] - d[2] * e2[1];
   const double py = d[2] * e2[0] - d[0] * e2[2];
   const double pz = d[0] * e2[1] - d[1] * e2[0];

@@ -126,8 +126,7 @@ EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality, bool gathe
     if (!im.device) throw Error(ExitCode::kInternal, "Embree oracle: rtcNewDevice failed");
     rtcSetDeviceErrorFunction(im.device, on_embree_error, &im.errors);
     const RTCBuildQuality q = to_rtc(quality);
-    const auto flags =
-        RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | (gather_filter ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
+    const auto flags = RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | (gather_filter ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
 
     im.mesh_scenes.assign(scene.meshes.size(), nullptr);
     for (size_t m = 0; m < scene.meshes.size(); ++m) {
@@ -136,10 +135,10 @@ EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality, bool gathe
       if (tris == 0 || mesh.positions.empty()) continue;
       RTCGeometry g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_TRIANGLE);
       // Embree allocates these with the padding its SSE loads need (a shared std::vector would not).
-      auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                            3 * sizeof(float), mesh.positions.size()));
-      auto* ix = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                3 * sizeof(uint32_t), tris));
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));
+      auto* ix = static_cast<uint32_t*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), tris));
       im.check("allocating geometry buffers");
       for (size_t i = 0; i < mesh.positions.size(); ++i) {
         v[3 * i + 0] = mesh.positions[i].x;
@@ -338,8 +337,7 @@ void gather_hit(const RTCFilterFunctionNArguments* a) {
 
 }  // namespace
 
-OracleStats EmbreeOracle::multi_hit(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits,
-                                    uint32_t* counts) const {
+OracleStats EmbreeOracle::multi_hit(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts) const {
   if (!gather_filter_) throw Error(ExitCode::kUsage, "Embree oracle: multi_hit needs an oracle built with gather_filter");
   if (max_hits == 0) throw Error(ExitCode::kUsage, "Embree oracle: multi_hit needs N >= 1");
   std::atomic<uint64_t> invalid{0}, unsupported{0};

@@ -68,8 +68,7 @@ class EmbreeOracle {
   EmbreeOracle& operator=(const EmbreeOracle&) = delete;
 
   /// Closest hit of rays[0..n) into hits[0..n) (t = +inf, instance = prim = kNone, u = v = 0 on a miss).
-  OracleStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n,
-                      RayCoherence coherence = RayCoherence::kIncoherent) const;
+  OracleStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, RayCoherence coherence = RayCoherence::kIncoherent) const;
 
   /// Any hit in [tnear, tfar]: occluded[i] = 1 or 0 (0 for invalid/unsupported rays).
   OracleStats occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n,

@@ -36,7 +36,6 @@ void world_box(const Affine3x4& m, const double lo[3], const double hi[3], doubl
 
 }  // namespace instance_ref
 
-
 InstanceReference::InstanceReference(const Scene& scene) : scene_(scene) {
   runs_.resize(scene.meshes.size());
   for (size_t m = 0; m < scene.meshes.size(); ++m) {

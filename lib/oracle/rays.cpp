@@ -317,8 +317,8 @@ std::vector<fmt::Ray> inside_rays(const Scene& scene, const Frame& f, size_t cou
 // Bounce and shadow rays: from hits of random camera rays. Rounds of base rays sized by the hit rate
 // seen so far (many camera rays of a sparse scene miss), at most max(count, 2^20) per round and 64 per
 // wanted ray in all.
-std::vector<fmt::Ray> from_primary_hits(const Scene& scene, const Frame& f, RayKind kind, size_t count,
-                                        const RayGenOptions& opt, RayGenInfo& info) {
+std::vector<fmt::Ray> from_primary_hits(const Scene& scene, const Frame& f, RayKind kind, size_t count, const RayGenOptions& opt,
+                                        RayGenInfo& info) {
   const std::vector<Camera> cams = ray_cameras(scene);
   const Vec3d light = shadow_light(scene);
   std::vector<fmt::Ray> out;

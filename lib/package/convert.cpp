@@ -14,9 +14,7 @@
 namespace rtp {
 namespace {
 
-StageCost cost_since(Clock::time_point t0) {
-  return {std::chrono::duration<double>(Clock::now() - t0).count(), peak_rss_mib()};
-}
+StageCost cost_since(Clock::time_point t0) { return {std::chrono::duration<double>(Clock::now() - t0).count(), peak_rss_mib()}; }
 
 }  // namespace
 
@@ -89,11 +87,20 @@ ConvertOutcome convert_scene(const ConvertSettings& s, const ConvertHooks& hooks
   cv.metadata = {{"tool_version", "rtpack " RTP_VERSION},
                  {"source", utf8_display(std::filesystem::path(s.input).filename().string())},
                  {"options",
-                  {{"bvh_width", s.width}, {"leaf_width", leaf_width}, {"bvh_build", s.bvh_build},
-                   {"chunk_target", s.chunk_target}, {"chunk_by", s.chunk_by}, {"zstd_level", s.zstd_level},
-                   {"zstd_raw_literals", s.zstd_raw_literals}, {"zstd_leaf_min_match", s.zstd_leaf_min_match},
-                   {"subdivide", s.subdivide}, {"subdivide_to", s.subdivide_to}, {"weld", s.weld},
-                   {"scene", scene.gltf_scene}, {"attributes", s.attributes}, {"dag", s.dag},
+                  {{"bvh_width", s.width},
+                   {"leaf_width", leaf_width},
+                   {"bvh_build", s.bvh_build},
+                   {"chunk_target", s.chunk_target},
+                   {"chunk_by", s.chunk_by},
+                   {"zstd_level", s.zstd_level},
+                   {"zstd_raw_literals", s.zstd_raw_literals},
+                   {"zstd_leaf_min_match", s.zstd_leaf_min_match},
+                   {"subdivide", s.subdivide},
+                   {"subdivide_to", s.subdivide_to},
+                   {"weld", s.weld},
+                   {"scene", scene.gltf_scene},
+                   {"attributes", s.attributes},
+                   {"dag", s.dag},
                    {"dag_resolution", s.dag_resolution}}}};
   out.report = write_package(scene, out.plan, s.output, cv);
   out.chunks_cost = cost_since(t0);

@@ -17,24 +17,24 @@ namespace rtp {
 
 // rtpack-convert's options, with its defaults.
 struct ConvertSettings {
-  std::string input, output;                 // output is ignored with dry_run
-  int scene = -1;                            // glTF scene; -1: the file's default
-  std::vector<std::string> allow_paths;      // further directories for external buffers
-  std::vector<std::string> attributes;       // "normal", "uv": stored as per-chunk streams
-  double weld = -1;                          // < 0: no welding
-  int subdivide = 0;                         // uniform Loop levels
-  double subdivide_to = 0;                   // > 0: adaptive, longest world edge below this
-  int width = 8, leaf_width = 0;             // leaf_width 0: W (8 for W = 16)
-  std::string bvh_build = "collapse";        // or "split"
-  uint64_t chunk_target = 0;                 // 0: derived from the scene
-  std::string chunk_by = "instanced";        // or "unique"
-  int zstd_level = kDefaultZstdLevel;        // 0 = store
-  bool zstd_raw_literals = true;             // ConvertOptions::zstd_raw_literals
+  std::string input, output;                       // output is ignored with dry_run
+  int scene = -1;                                  // glTF scene; -1: the file's default
+  std::vector<std::string> allow_paths;            // further directories for external buffers
+  std::vector<std::string> attributes;             // "normal", "uv": stored as per-chunk streams
+  double weld = -1;                                // < 0: no welding
+  int subdivide = 0;                               // uniform Loop levels
+  double subdivide_to = 0;                         // > 0: adaptive, longest world edge below this
+  int width = 8, leaf_width = 0;                   // leaf_width 0: W (8 for W = 16)
+  std::string bvh_build = "collapse";              // or "split"
+  uint64_t chunk_target = 0;                       // 0: derived from the scene
+  std::string chunk_by = "instanced";              // or "unique"
+  int zstd_level = kDefaultZstdLevel;              // 0 = store
+  bool zstd_raw_literals = true;                   // ConvertOptions::zstd_raw_literals
   int zstd_leaf_min_match = kDefaultLeafMinMatch;  // ConvertOptions::zstd_leaf_min_match
-  bool dag = true;                           // culling DAGs
-  uint32_t dag_resolution = 0;               // 0: per batching point
-  bool dry_run = false;                      // stop after preparation
-  bool topology = false;                     // CleanOptions::topology (OpenMesh half-edge analysis; report only)
+  bool dag = true;                                 // culling DAGs
+  uint32_t dag_resolution = 0;                     // 0: per batching point
+  bool dry_run = false;                            // stop after preparation
+  bool topology = false;                           // CleanOptions::topology (OpenMesh half-edge analysis; report only)
 };
 
 // The caller's view while it runs: a stage starts (counts = false: progress in work units, not items),
@@ -53,8 +53,8 @@ struct StageCost {
 struct ConvertOutcome {
   Scene scene;
   PrepareReport prepare;
-  Plan plan;                // empty with dry_run
-  ConvertReport report;     // empty with dry_run
+  Plan plan;             // empty with dry_run
+  ConvertReport report;  // empty with dry_run
   StageCost import_cost, prepare_cost, plan_cost, chunks_cost;
   double total_seconds() const { return import_cost.seconds + prepare_cost.seconds + plan_cost.seconds + chunks_cost.seconds; }
 };

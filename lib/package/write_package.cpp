@@ -115,7 +115,8 @@ void build_segment(const Scene& scene, const MeshSegment& seg, const BuildOption
   // Each mesh's BVH is independent of the others: built in parallel, each the same for any thread
   // count (a segment of forest-2k's 12 meshes was one thread's work while the other thread idled).
   std::vector<MeshBvh<W, B>> bvhs(seg.meshes.size());
-  parallel_for_lowest_error(seg.meshes.size(), [&](size_t k) { bvhs[k] = build_mesh_bvh<W, B>(scene.meshes[seg.meshes[k]], bo); });
+  parallel_for_lowest_error(seg.meshes.size(),
+                            [&](size_t k) { bvhs[k] = build_mesh_bvh<W, B>(scene.meshes[seg.meshes[k]], bo); });
   for (size_t k = 0; k < seg.meshes.size(); ++k) {
     const uint32_t m = seg.meshes[k];
     parts.append(bvhs[k], m, scene.meshes[m].triangle_count());
@@ -253,9 +254,15 @@ std::vector<Job> early_resident_jobs(const Scene& scene, const Plan& plan, const
   meta["dag"] = o.dag && !plan.points.empty();  // a grid per point, as write_t makes them
   nlohmann::json cams = nlohmann::json::array();
   for (const Camera& c : scene.cameras)
-    cams.push_back({{"name", c.name}, {"type", c.type == Camera::Type::kPerspective ? "perspective" : "orthographic"},
-                    {"yfov", c.yfov}, {"aspect_ratio", c.aspect_ratio}, {"xmag", c.xmag}, {"ymag", c.ymag},
-                    {"znear", c.znear}, {"zfar", c.zfar}, {"world", c.world.m}});
+    cams.push_back({{"name", c.name},
+                    {"type", c.type == Camera::Type::kPerspective ? "perspective" : "orthographic"},
+                    {"yfov", c.yfov},
+                    {"aspect_ratio", c.aspect_ratio},
+                    {"xmag", c.xmag},
+                    {"ymag", c.ymag},
+                    {"znear", c.znear},
+                    {"zfar", c.zfar},
+                    {"world", c.world.m}});
   meta["cameras"] = cams;
   nlohmann::json names = nlohmann::json::array();
   for (const Mesh& m : scene.meshes) names.push_back(m.name);
@@ -424,8 +431,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
     ~ProxySlot() {
       try {
         voxelizing.wait();
-      } catch (...) {
-      }
+      } catch (...) {}
     }
   };
   // Declared after everything the voxelizing tasks read: on an error, each slot waits for its task as
@@ -481,77 +487,71 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   // Ordered pipeline: ids in order -> build + compress in parallel -> append in order.
   const size_t tokens = size_t(2 * tbb::this_task_arena::max_concurrency());
   tbb::parallel_pipeline(
-      tokens,
-      tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order,
-                                       [&](tbb::flow_control& fc) -> uint64_t {
-                                         if (next == n_seg + n_pts) {
-                                           fc.stop();
-                                           return 0;
-                                         }
-                                         return next++;
-                                       }) &
-          tbb::make_filter<uint64_t, Packed>(tbb::filter_mode::parallel,
-                                             [&](uint64_t k) {
-                                               Packed p;
-                                               if (k < n_seg) {
-                                                 p.job = {ChunkKind::kMeshSegment, k, {}};
-                                                 build_segment<W, B>(scene, plan.segments[k], o.bvh, seal_opt, p.job);
-                                               } else {
-                                                 const uint64_t id = k - n_seg;
-                                                 p.job = {ChunkKind::kBatchingPoint, id, {}};
-                                                 const BatchingPoint& bp = plan.points[id];
-                                                 ProxySlot* slot = nullptr;
-                                                 if (o.dag) {
-                                                   slots[id] = std::make_unique<ProxySlot>();
-                                                   slot = slots[id].get();
-                                                   slot->boxes = box_proxy(bp);
-                                                 }
-                                                 auto before_seal = [&] {
-                                                   if (!slot) return;
-                                                   if (slot->boxes && !slot->cull.empty()) {
-                                                     slot->ready.store(true, std::memory_order_release);
-                                                     return;
-                                                   }
-                                                   slot->boxes = false;  // root not a node: voxels after all
-                                                   slot->voxelizing.run([&, slot, id] {  // runs past this filter: no local by reference
-                                                     try {
-                                                       slot->proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records,
-                                                                                           plan.points[id], o.voxel);
-                                                     } catch (...) {  // ready too: the serial stage's wait rethrows at once
-                                                       slot->ready.store(true, std::memory_order_release);
-                                                       throw;
-                                                     }
-                                                     voxel_ns += int64_t(slot->proxy.work_seconds * 1e9);
-                                                     slot->ready.store(true, std::memory_order_release);
-                                                   });
-                                                 };
-                                                 build_point<W, B>(scene, plan, records, mesh_box, bp, o.bvh, seal_opt, p.job,
-                                                                   slot && slot->boxes ? &slot->cull : nullptr, before_seal);
-                                               }
-                                               if (!p.job.attr_raw.empty())
-                                                 p.attr_stored = PackageWriter::compress(
-                                                     p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);
-                                               return p;
-                                             }) &
-          tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
-            const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.job.stored, p.job.comp, p.job.raw_size);
-            record(p.job, e);
-            if (!p.job.attr_raw.empty()) {  // right after its geometry: one sequential read for both
-              const ChunkKind ak = p.job.kind == ChunkKind::kMeshSegment ? ChunkKind::kSegmentAttributes
-                                                                          : ChunkKind::kPointAttributes;
-              const fmt::TocEntry& ae = writer.add_packed(ak, p.job.id, p.attr_stored, p.attr_comp, p.job.attr_raw.size());
-              SectionBytes& s = rep.by_kind[chunk_kind_name(ae.kind)];
-              ++s.chunks;
-              s.raw += ae.raw_size;
-              s.stored += ae.stored_size;
-              ++rep.chunks;
-              header_flags |= p.job.attr_flags;
-            }
-            if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
-              pending.push_back(p.job.id);
-              join_proxies(false);
-            }
-          }));
+      tokens, tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& fc) -> uint64_t {
+                if (next == n_seg + n_pts) {
+                  fc.stop();
+                  return 0;
+                }
+                return next++;
+              }) & tbb::make_filter<uint64_t, Packed>(tbb::filter_mode::parallel, [&](uint64_t k) {
+                Packed p;
+                if (k < n_seg) {
+                  p.job = {ChunkKind::kMeshSegment, k, {}};
+                  build_segment<W, B>(scene, plan.segments[k], o.bvh, seal_opt, p.job);
+                } else {
+                  const uint64_t id = k - n_seg;
+                  p.job = {ChunkKind::kBatchingPoint, id, {}};
+                  const BatchingPoint& bp = plan.points[id];
+                  ProxySlot* slot = nullptr;
+                  if (o.dag) {
+                    slots[id] = std::make_unique<ProxySlot>();
+                    slot = slots[id].get();
+                    slot->boxes = box_proxy(bp);
+                  }
+                  auto before_seal = [&] {
+                    if (!slot) return;
+                    if (slot->boxes && !slot->cull.empty()) {
+                      slot->ready.store(true, std::memory_order_release);
+                      return;
+                    }
+                    slot->boxes = false;                  // root not a node: voxels after all
+                    slot->voxelizing.run([&, slot, id] {  // runs past this filter: no local by reference
+                      try {
+                        slot->proxy = voxel::voxelize_point(scene, plan, *mesh_proxies, records, plan.points[id], o.voxel);
+                      } catch (...) {  // ready too: the serial stage's wait rethrows at once
+                        slot->ready.store(true, std::memory_order_release);
+                        throw;
+                      }
+                      voxel_ns += int64_t(slot->proxy.work_seconds * 1e9);
+                      slot->ready.store(true, std::memory_order_release);
+                    });
+                  };
+                  build_point<W, B>(scene, plan, records, mesh_box, bp, o.bvh, seal_opt, p.job,
+                                    slot && slot->boxes ? &slot->cull : nullptr, before_seal);
+                }
+                if (!p.job.attr_raw.empty())
+                  p.attr_stored =
+                      PackageWriter::compress(p.job.attr_raw.data(), p.job.attr_raw.size(), o.zstd_level, p.attr_comp);
+                return p;
+              }) & tbb::make_filter<Packed, void>(tbb::filter_mode::serial_in_order, [&](Packed p) {
+                const fmt::TocEntry& e = writer.add_packed(p.job.kind, p.job.id, p.job.stored, p.job.comp, p.job.raw_size);
+                record(p.job, e);
+                if (!p.job.attr_raw.empty()) {  // right after its geometry: one sequential read for both
+                  const ChunkKind ak =
+                      p.job.kind == ChunkKind::kMeshSegment ? ChunkKind::kSegmentAttributes : ChunkKind::kPointAttributes;
+                  const fmt::TocEntry& ae = writer.add_packed(ak, p.job.id, p.attr_stored, p.attr_comp, p.job.attr_raw.size());
+                  SectionBytes& s = rep.by_kind[chunk_kind_name(ae.kind)];
+                  ++s.chunks;
+                  s.raw += ae.raw_size;
+                  s.stored += ae.stored_size;
+                  ++rep.chunks;
+                  header_flags |= p.job.attr_flags;
+                }
+                if (o.dag && p.job.kind == ChunkKind::kBatchingPoint) {
+                  pending.push_back(p.job.id);
+                  join_proxies(false);
+                }
+              }));
   join_proxies(true);
   rep.dag_pool_bytes = pool.bytes();
   rep.voxelize_seconds = double(voxel_ns.load()) * 1e-9;

@@ -50,8 +50,8 @@ struct ConvertOptions {
   // chunk size): 16 % more bytes in them than level 3's 5, decompressed 1.5x faster (kDefaultLeafMinMatch,
   // measured at level 3). --zstd-leaf-min-match 0 restores the level's.
   int zstd_leaf_min_match = kDefaultLeafMinMatch;
-  bool dag = true;             // store a culling DAG per batching point (--no-dag: none)
-  voxel::VoxelOptions voxel;   // resolution (0 = per point), thin (tests only)
+  bool dag = true;                                     // store a culling DAG per batching point (--no-dag: none)
+  voxel::VoxelOptions voxel;                           // resolution (0 = per point), thin (tests only)
   nlohmann::json metadata = nlohmann::json::object();  // merged into the metadata chunk
   // Called from the writing thread after each chunk: (chunks written, chunks total).
   std::function<void(uint64_t, uint64_t)> progress;

@@ -18,14 +18,15 @@ constexpr uint64_t kWritebackBytes = uint64_t(1) << 20;
 PackageWriter::PackageWriter(const std::string& path, int zstd_level) : out_(path), level_(zstd_level) {
   if (zstd_level < kMinZstdLevel || zstd_level > ZSTD_maxCLevel())
     throw Error(ExitCode::kUsage, "--zstd-level " + std::to_string(zstd_level) + ": must be " + std::to_string(kMinZstdLevel) +
-                                      ".." + std::to_string(ZSTD_maxCLevel()) + " (0 stores raw, negative levels are zstd's fast ones)");
+                                      ".." + std::to_string(ZSTD_maxCLevel()) +
+                                      " (0 stores raw, negative levels are zstd's fast ones)");
 }
 
 PackageWriter::~PackageWriter() = default;
 
 void PackageWriter::write_at(uint64_t offset, const void* data, size_t size) { out_.write_at(offset, data, size); }
 AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, fmt::Compression& used, bool raw_literals,
-                                    int min_match, int workers) {
+                                     int min_match, int workers) {
   used = fmt::Compression::kNone;
   if (level != 0 && size > 0) {  // negative: zstd's fast levels (--fast=N)
     // A per-thread scratch of compressBound bytes, reused, never zero-filled (AlignedBytes): a fresh
@@ -56,7 +57,8 @@ AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, f
     if (workers > 0 && size >= kWorkersMinBytes) (void)ZSTD_CCtx_setParameter(cctx, ZSTD_c_nbWorkers, workers);
     if (min_match > 0) {
       const size_t r = ZSTD_CCtx_setParameter(cctx, ZSTD_c_minMatch, min_match);
-      if (ZSTD_isError(r)) throw Error(ExitCode::kUsage, "zstd minimum match " + std::to_string(min_match) + ": " + ZSTD_getErrorName(r));
+      if (ZSTD_isError(r))
+        throw Error(ExitCode::kUsage, "zstd minimum match " + std::to_string(min_match) + ": " + ZSTD_getErrorName(r));
     }
     const size_t n = ZSTD_compress2(cctx, scratch.data(), scratch.size(), data, size);
     if (ZSTD_isError(n)) throw Error(ExitCode::kInternal, std::string("zstd: ") + ZSTD_getErrorName(n));

@@ -36,11 +36,11 @@ class PackageWriter {
   // shortest match (3..7) instead of the level's own (see ConvertOptions). workers > 0: a chunk of at
   // least kWorkersMinBytes is compressed by that many zstd threads of its own (zstd's multithreaded
   // mode, whose bytes are the same for any number of workers >= 1: still deterministic).
-  static AlignedBytes compress(const void* data, size_t size, int level, fmt::Compression& used,
-                               bool raw_literals = false, int min_match = 0, int workers = 0);
+  static AlignedBytes compress(const void* data, size_t size, int level, fmt::Compression& used, bool raw_literals = false,
+                               int min_match = 0, int workers = 0);
   static constexpr size_t kWorkersMinBytes = size_t(4) << 20;
-  const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const AlignedBytes& stored,
-                                  fmt::Compression compression, uint64_t raw_size);
+  const fmt::TocEntry& add_packed(fmt::ChunkKind kind, uint64_t id, const AlignedBytes& stored, fmt::Compression compression,
+                                  uint64_t raw_size);
   // Writes the TOC and the header (filling magic, version, file size, TOC fields and CRCs of
   // `header`), flushes, and puts the file at `path` (atomically replacing a previous one).
   void finish(fmt::Header header);

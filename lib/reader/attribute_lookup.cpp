@@ -25,7 +25,7 @@ using Tri = std::array<uint32_t, 3>;
 struct Loc {
   uint32_t chunk = fmt::kNoAttribute;  // index into Impl::chunks
   uint32_t entry = 0;
-  uint32_t triangle = 0;               // local triangle within the entry
+  uint32_t triangle = 0;  // local triangle within the entry
 };
 
 struct Chunk {

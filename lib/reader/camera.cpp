@@ -48,7 +48,8 @@ void check_camera_world(const double m[12], const std::string& pointer) {
       std::snprintf(v, sizeof v, "%g", m[i]);
       fail_invalid(pointer + "/" + std::to_string(i) + ": " + v + " is not a finite coordinate of float range");
     }
-  const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
+  const double det =
+      m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
   if (!(std::fabs(std::fabs(det) - 1) <= 1e-3)) {
     std::snprintf(v, sizeof v, "%g", det);
     fail_invalid(pointer + ": the 3x3 part has determinant " + v + ", not a rotation (+-1)");
@@ -60,8 +61,9 @@ CameraRays camera_rays(const PackageReader& reader, int w, int h, int camera) {
   const size_t n = md.cameras.size();
   if (camera >= 0 && size_t(camera) >= n)
     throw Error(ExitCode::kUsage, "camera " + std::to_string(camera) + ": the package has " + std::to_string(n) +
-                                      (n == 1 ? " camera (0)" : n == 0 ? " cameras (leave out --camera for an automatic one)"
-                                                                      : " cameras (0 to " + std::to_string(n - 1) + ")"));
+                                      (n == 1   ? " camera (0)"
+                                       : n == 0 ? " cameras (leave out --camera for an automatic one)"
+                                                : " cameras (0 to " + std::to_string(n - 1) + ")"));
   CameraRays out;
   double m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};  // camera -> world, row-major 3x4
   double yfov = 0.785398, ymag = 0;
@@ -73,7 +75,8 @@ CameraRays camera_rays(const PackageReader& reader, int w, int h, int camera) {
     const std::string cp = md.label + ": /cameras/" + std::to_string(ci);
     if (!cam.is_object()) fail_invalid(cp + ": not an object");
     const std::string type = jsonc::get_string(cam, "type", cp);
-    if (type != "perspective" && type != "orthographic") fail_invalid(cp + "/type: '" + type + "' is neither perspective nor orthographic");
+    if (type != "perspective" && type != "orthographic")
+      fail_invalid(cp + "/type: '" + type + "' is neither perspective nor orthographic");
     const nlohmann::json& world = jsonc::member(cam, "world", cp);
     if (!world.is_array() || world.size() != 12) fail_invalid(cp + "/world: needs 12 numbers");
     for (size_t i = 0; i < 12; ++i) m[i] = jsonc::as_number(world[i], cp + "/world/" + std::to_string(i));

@@ -77,7 +77,8 @@ void check_entries(const GeometrySections<W, B>& g, const std::string& label, co
       fail_invalid(what() + ": block_first " + str(e.block_first) + " + block_count " + str(e.block_count) + " outside the " +
                    str(g.n_blocks) + " blocks");
     nodes_total += e.node_count;
-    if (nodes_total > g.n_nodes) fail_invalid(what() + ": node ranges of the entries overlap (more nodes than the section holds)");
+    if (nodes_total > g.n_nodes)
+      fail_invalid(what() + ": node ranges of the entries overlap (more nodes than the section holds)");
     if (seen.size() < e.node_count) seen.assign(e.node_count, 0);
     check_wide_bvh<W>(g.nodes + e.node_first, e.node_count, e.root, e.block_count, seen, what, "block");
     if (!prims) continue;
@@ -163,8 +164,8 @@ void check_instance_table(const fmt::InstanceRef* refs, uint64_t count, uint64_t
   }
 }
 
-void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris,
-                      uint64_t segments, const std::string& label) {
+void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris, uint64_t segments,
+                      const std::string& label) {
   for (uint64_t m = 0; m < count; ++m) {
     const fmt::MeshInfo& mi = meshes[m];
     auto what = [&] { return label + ": mesh " + str(m); };
@@ -208,8 +209,8 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
                  str(te.block_first) + "+" + str(te.block_count) + ") disagrees with its sections (" + str(p.n_instance_nodes) +
                  " nodes, " + str(p.n_instance_ids) + " ids)");
   std::vector<uint8_t> seen(p.n_instance_nodes, 0);
-  check_wide_bvh<W>(p.instance_nodes, p.n_instance_nodes, te.root, p.n_instance_ids, seen, [&] { return L + ": instance BVH"; },
-                    "instance id");
+  check_wide_bvh<W>(
+      p.instance_nodes, p.n_instance_nodes, te.root, p.n_instance_ids, seen, [&] { return L + ": instance BVH"; }, "instance id");
   std::vector<uint8_t> used(p.n_records, 0);
   for (uint64_t k = 0; k < p.n_instance_ids; ++k) {
     const uint32_t id = p.instance_ids[k];
@@ -218,8 +219,7 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
     if (used[id]++)
       fail_invalid(L + ": instance id " + str(k) + " = " + str(id) + " is referenced a second time by the instance BVH");
   }
-  if (n_gid != p.n_records)
-    fail_invalid(L + ": " + str(n_gid) + " global ids for " + str(p.n_records) + " instances");
+  if (n_gid != p.n_records) fail_invalid(L + ": " + str(n_gid) + " global ids for " + str(p.n_records) + " instances");
   for (uint64_t k = 0; k < p.n_records; ++k) {
     if (scene_instances != kUnknownCount && p.global_ids[k] >= scene_instances)
       fail_invalid(L + ": global id " + str(k) + " = " + str(p.global_ids[k]) + " out of range (" + str(scene_instances) +
@@ -238,7 +238,8 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
 std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, uint64_t normals, uint64_t uvs,
                                    uint64_t tri_ids) {
   auto outside = [](const char* first, uint64_t f, const char* count, uint64_t c, uint64_t n, const char* what) {
-    return std::string(first) + " " + str(f) + " + " + count + " " + str(c) + " outside the section (" + str(n) + " " + what + ")";
+    return std::string(first) + " " + str(f) + " + " + count + " " + str(c) + " outside the section (" + str(n) + " " + what +
+           ")";
   };
   if (!range_inside(e.triangle_first, e.triangle_count, tris))
     return outside("triangle_first", e.triangle_first, "triangle_count", e.triangle_count, tris, "triangles");
@@ -251,8 +252,8 @@ std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, 
   return {};
 }
 
-#define RTP_CHECK_WB(W, B)                                                          \
-  template GeometrySections<W, B> decode_segment<W, B>(const ChunkView&);          \
+#define RTP_CHECK_WB(W, B)                                                \
+  template GeometrySections<W, B> decode_segment<W, B>(const ChunkView&); \
   template PointSections<W, B> decode_point<W, B>(const ChunkView&, uint64_t);
 RTP_CHECK_WB(4, 4)
 RTP_CHECK_WB(8, 8)

@@ -17,9 +17,7 @@
 namespace rtp {
 
 // [first, first + count) lies inside [0, size), without 64-bit wrap.
-constexpr bool range_inside(uint64_t first, uint64_t count, uint64_t size) {
-  return first <= size && count <= size - first;
-}
+constexpr bool range_inside(uint64_t first, uint64_t count, uint64_t size) { return first <= size && count <= size - first; }
 
 // "Unknown" for a cross-chunk count that the caller has not read (that reference is then not checked).
 inline constexpr uint64_t kUnknownCount = ~uint64_t(0);
@@ -39,8 +37,8 @@ void check_instance_table(const fmt::InstanceRef* refs, uint64_t count, uint64_t
 
 // Kind 5 against kind 6: every mesh's source ranges inside the source map (so every triangle count is
 // backed by 8 bytes of the file), segment < `segments` or none.
-void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris,
-                      uint64_t segments, const std::string& label);
+void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris, uint64_t segments,
+                      const std::string& label);
 
 // The sections of a geometry chunk (kind 17 mesh segment; kind 16 uses these for its pieces).
 template <int W, int B>
@@ -79,7 +77,6 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances);
 
 // Kinds 18/19: one attribute entry's ranges inside sections of `tris` triangles, `normals` / `uvs`
 // vertices and `tri_ids` ids (64-bit safe). Returns "" or what is wrong (the field named).
-std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, uint64_t normals, uint64_t uvs,
-                                   uint64_t tri_ids);
+std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, uint64_t normals, uint64_t uvs, uint64_t tri_ids);
 
 }  // namespace rtp

@@ -120,7 +120,8 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
   // What the I/O thread read ahead becomes resident (unpinned) like any other load; a request for it
   // below is a miss that did not wait, not a hit.
   std::vector<uint32_t> staged = std::move(staged_indices_);
-  tbb::parallel_for(size_t(0), staged.size(), [&](size_t k) { on_load(staged[k], staged_bytes_[k]); }, tbb::simple_partitioner());
+  tbb::parallel_for(
+      size_t(0), staged.size(), [&](size_t k) { on_load(staged[k], staged_bytes_[k]); }, tbb::simple_partitioner());
   for (size_t k = 0; k < staged.size(); ++k) {
     insert(staged[k], std::move(staged_bytes_[k]), false);
     ++stats_.prefetched;
@@ -179,13 +180,16 @@ void ChunkCache::acquire(const std::vector<uint32_t>& toc_indices,
   std::stable_sort(by_size.begin(), by_size.end(), [&](size_t a, size_t b) { return cost(missing[a]) > cost(missing[b]); });
   std::atomic<size_t> next{0};
   const size_t workers = std::min<size_t>(size_t(std::max(1, tbb::this_task_arena::max_concurrency())), missing.size());
-  tbb::parallel_for(size_t(0), workers, [&](size_t) {
-    for (size_t j = next++; j < by_size.size(); j = next++) {
-      const size_t k = by_size[j];
-      reader_.read_into(missing[k], loaded[k]);
-      on_load(missing[k], loaded[k]);
-    }
-  }, tbb::simple_partitioner());
+  tbb::parallel_for(
+      size_t(0), workers,
+      [&](size_t) {
+        for (size_t j = next++; j < by_size.size(); j = next++) {
+          const size_t k = by_size[j];
+          reader_.read_into(missing[k], loaded[k]);
+          on_load(missing[k], loaded[k]);
+        }
+      },
+      tbb::simple_partitioner());
   stats_.load_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   release_kept_large();  // evicted buffers no load took: memory is back to what the budget counts
   for (size_t k = 0; k < missing.size(); ++k) insert(missing[k], std::move(loaded[k]), true);

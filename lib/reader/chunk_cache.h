@@ -20,13 +20,13 @@
 namespace rtp {
 
 struct ChunkCacheStats {
-  uint64_t requests = 0;       // chunks asked for by acquire()
-  uint64_t hits = 0;           // of those, already resident
-  uint64_t loads = 0;          // chunks read from the file (misses)
-  uint64_t bytes_read = 0;     // stored (compressed) bytes of those reads
+  uint64_t requests = 0;    // chunks asked for by acquire()
+  uint64_t hits = 0;        // of those, already resident
+  uint64_t loads = 0;       // chunks read from the file (misses)
+  uint64_t bytes_read = 0;  // stored (compressed) bytes of those reads
   uint64_t raw_bytes_loaded = 0;
   uint64_t evictions = 0;
-  uint64_t prefetched = 0;     // of the loads, read ahead on the I/O thread while a round traced
+  uint64_t prefetched = 0;           // of the loads, read ahead on the I/O thread while a round traced
   uint64_t resident_bytes = 0;       // decompressed bytes held now (a reused buffer may hold up to 1/16
                                      // more: allocator slack, in the peak RSS, not in the budget)
   uint64_t peak_resident_bytes = 0;  // the most ever held at once (≤ the budget)
@@ -45,8 +45,7 @@ class ChunkCache {
   // and decode it; on_load runs concurrently on TBB workers, once per chunk, and must be safe for distinct
   // indices. When it throws, acquire() throws and the chunks of that call are dropped.
   // Throws Error(kUsage) when the pinned chunks and these cannot fit in the budget.
-  void acquire(const std::vector<uint32_t>& toc_indices,
-               const std::function<void(uint32_t, const AlignedBytes&)>& on_load);
+  void acquire(const std::vector<uint32_t>& toc_indices, const std::function<void(uint32_t, const AlignedBytes&)>& on_load);
   // The bytes of a resident chunk (valid until it is evicted: not before the next acquire()).
   const AlignedBytes& bytes(uint32_t toc_index) const;
   bool resident(uint32_t toc_index) const { return entries_.count(toc_index) != 0; }

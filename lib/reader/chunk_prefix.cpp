@@ -20,7 +20,9 @@ uint64_t PackageReader::section_count(size_t index, uint32_t type, uint32_t elem
   const fmt::TocEntry& e = toc_[index];
   const std::string label = chunk_label(e, index);
   constexpr size_t kPiece = size_t(1) << 20;  // a multiple of 4096: aligned reads also under O_DIRECT
-  struct Free { void operator()(void* p) const { std::free(p); } };
+  struct Free {
+    void operator()(void* p) const { std::free(p); }
+  };
   std::unique_ptr<uint8_t, Free> buf(static_cast<uint8_t*>(std::aligned_alloc(fmt::kAlignment, kPiece)));
   if (!buf) throw std::bad_alloc();
   const bool zstd = e.compression == uint32_t(fmt::Compression::kZstd);
@@ -74,8 +76,7 @@ uint64_t PackageReader::section_count(size_t index, uint32_t type, uint32_t elem
   if (crc != e.crc32c) fail_invalid(label + ": checksum mismatch: corrupt chunk");
   fmt::ChunkHeader h{};
   if (head.size() >= sizeof h) std::memcpy(&h, head.data(), sizeof h);
-  if (head.size() < sizeof h || h.magic != fmt::kChunkMagic || h.kind != e.kind)
-    fail_invalid(label + ": bad chunk header");
+  if (head.size() < sizeof h || h.magic != fmt::kChunkMagic || h.kind != e.kind) fail_invalid(label + ": bad chunk header");
   if (h.section_count > 4096 || head.size() < sizeof h + size_t(h.section_count) * sizeof(fmt::SectionEntry))
     fail_invalid(label + ": section table of " + std::to_string(h.section_count) + " entries is cut short");
   for (uint32_t k = 0; k < h.section_count; ++k) {

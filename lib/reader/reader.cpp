@@ -48,8 +48,8 @@ void PackageReader::check_header_and_toc() {
     const size_t n = size_t(std::min<uint64_t>(file_size_, sizeof head));
     if (n && ::pread(fd_, head, n, 0) == ssize_t(n) && std::memcmp(head, fmt::kMagic, n) != 0)
       fail_invalid("not an rtpack package (bad magic; " + std::to_string(file_size_) + " bytes)");
-    fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " +
-                 std::to_string(fmt::kAlignment) + "-byte header block");
+    fail_invalid("truncated file: " + std::to_string(file_size_) + " bytes, smaller than the " + std::to_string(fmt::kAlignment) +
+                 "-byte header block");
   }
   // The header block through the same aligned path as chunks.
   fmt::TocEntry hb{};
@@ -63,11 +63,13 @@ void PackageReader::check_header_and_toc() {
   if (header_.version_major != fmt::kVersionMajor)
     fail_invalid("package version " + std::to_string(header_.version_major) + "." + std::to_string(header_.version_minor) +
                  " is not supported by this reader (version " + std::to_string(fmt::kVersionMajor) + ".x)" +
-                 (header_.version_major < fmt::kVersionMajor ? ": it was written by an older rtpack-convert; convert the source again"
-                                                             : ""));
+                 (header_.version_major < fmt::kVersionMajor
+                      ? ": it was written by an older rtpack-convert; convert the source again"
+                      : ""));
   const uint32_t hcrc = crc32c(&header_, offsetof(fmt::Header, header_crc32c));
   if (hcrc != header_.header_crc32c)
-    fail_invalid("header checksum mismatch (stored " + hex32(header_.header_crc32c) + ", computed " + hex32(hcrc) + "): corrupt header");
+    fail_invalid("header checksum mismatch (stored " + hex32(header_.header_crc32c) + ", computed " + hex32(hcrc) +
+                 "): corrupt header");
   if (header_.file_size > file_size_)
     fail_invalid("truncated file: header says " + std::to_string(header_.file_size) + " bytes, the file has " +
                  std::to_string(file_size_));
@@ -75,7 +77,8 @@ void PackageReader::check_header_and_toc() {
     fail_invalid("the file has " + std::to_string(file_size_ - header_.file_size) + " bytes more than the header's " +
                  std::to_string(header_.file_size) + " (data appended after the package?)");
   if (header_.toc_entry_size < sizeof(fmt::TocEntry) || header_.toc_offset % fmt::kAlignment ||
-      header_.toc_offset < fmt::kAlignment || header_.toc_offset > file_size_ || header_.toc_count > (file_size_ / header_.toc_entry_size) ||
+      header_.toc_offset < fmt::kAlignment || header_.toc_offset > file_size_ ||
+      header_.toc_count > (file_size_ / header_.toc_entry_size) ||
       header_.toc_count * header_.toc_entry_size > file_size_ - header_.toc_offset)
     fail_invalid("table of contents out of bounds (offset " + std::to_string(header_.toc_offset) + ", " +
                  std::to_string(header_.toc_count) + " entries)");
@@ -243,7 +246,8 @@ uint64_t PackageReader::first_nonzero(uint64_t offset, uint64_t size) const {
     const size_t want = size_t(std::min<uint64_t>(buf.size(), size - done));
     const ssize_t n = ::pread(fd_, buf.data(), want, off_t(offset + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw Error(ExitCode::kInputIo, "read error at offset " + std::to_string(offset + done) + ": " + std::strerror(errno));
+    if (n < 0)
+      throw Error(ExitCode::kInputIo, "read error at offset " + std::to_string(offset + done) + ": " + std::strerror(errno));
     if (n == 0) return offset + done;  // past the end: not zeros
     for (ssize_t k = 0; k < n; ++k)
       if (buf[size_t(k)]) return offset + done + uint64_t(k);

@@ -48,8 +48,8 @@ auto guarded(const std::string& path, F&& f) -> decltype(f()) {
 // camera_rays() and tile_order() take 1 to 2^28 pixels.
 void check_image_size(const char* what, int width, int height) {
   if (width <= 0 || height <= 0 || int64_t(width) * height > (int64_t(1) << 28))
-    throw Error(int(rtp::ExitCode::kUsage), std::string(what) + ": " + std::to_string(width) + "x" +
-                                                std::to_string(height) + " is not a size (1 to 2^28 pixels)");
+    throw Error(int(rtp::ExitCode::kUsage), std::string(what) + ": " + std::to_string(width) + "x" + std::to_string(height) +
+                                                " is not a size (1 to 2^28 pixels)");
 }
 
 Bounds bounds_of(const float lo[3], const float hi[3]) {
@@ -88,11 +88,11 @@ struct Package::Impl {
       case Isa::kAvx512: opt.isa = rtp::Isa::kAvx512; break;
     }
     if (int(opt.isa) > int(best))
-      throw Error(int(rtp::ExitCode::kUsage), std::string("this CPU runs up to ") + rtp::isa_name(best) + ", not " +
-                                                   rtp::isa_name(opt.isa));
+      throw Error(int(rtp::ExitCode::kUsage),
+                  std::string("this CPU runs up to ") + rtp::isa_name(best) + ", not " + rtp::isa_name(opt.isa));
     if (o.packet < 0 || !rtp::packet_size_ok(uint32_t(o.packet)))
       throw Error(int(rtp::ExitCode::kUsage), "TraceOptions::packet = " + std::to_string(o.packet) +
-                                                   ": rays per packet are 4, 8 or 16, or 0 for single rays");
+                                                  ": rays per packet are 4, 8 or 16, or 0 for single rays");
     opt.packet = opt.isa == rtp::Isa::kScalar ? 0 : uint32_t(o.packet);  // the scalar reference has no packets
     return opt;
   }
@@ -176,8 +176,8 @@ namespace {
 // The public TraceStats of one call.
 void store_stats(const rtp::PackageTraceStats& st, TraceStats* out) {
   if (out)
-    *out = {st.rays, st.invalid_rays, st.point_visits, st.culled_visits, st.packets, st.packet_rays,
-            st.packet_node_tests, st.packet_active_lanes};
+    *out = {st.rays,    st.invalid_rays, st.point_visits,      st.culled_visits,
+            st.packets, st.packet_rays,  st.packet_node_tests, st.packet_active_lanes};
 }
 
 }  // namespace
@@ -187,24 +187,21 @@ size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptio
   rtp::TracerStats sum;
   const size_t n_hit = guarded(impl_->path, [&] {
     auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits);
-    sum = Impl::with_threads(options.threads, [&] {
-      return impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays), h, count, opt);
-    });
+    sum = Impl::with_threads(options.threads,
+                             [&] { return impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays), h, count, opt); });
     return size_t(std::count_if(h, h + count, [](const rtp::fmt::Hit& x) { return x.instance != rtp::fmt::Hit::kNone; }));
   });
   store_stats(sum, stats);
   return n_hit;
 }
 
-size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options,
-                         TraceStats* stats) const {
+size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options, TraceStats* stats) const {
   rtp::PackageTraceOptions opt = impl_->trace_options(options);
   opt.packet = 0;  // any hits through the package go ray by ray
   rtp::TracerStats sum;
   const size_t n_occ = guarded(impl_->path, [&] {
-    sum = Impl::with_threads(options.threads, [&] {
-      return impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays), occluded, count, opt);
-    });
+    sum = Impl::with_threads(
+        options.threads, [&] { return impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays), occluded, count, opt); });
     return size_t(std::count_if(occluded, occluded + count, [](uint8_t o) { return o != 0; }));
   });
   store_stats(sum, stats);

@@ -65,7 +65,7 @@ struct Bounds {
 // What the header says about the whole package.
 struct Info {
   uint32_t format_major = 0, format_minor = 0;
-  uint64_t package_bytes = 0;  // the file, as rtpack-convert and rtpack-inspect --json name it
+  uint64_t package_bytes = 0;        // the file, as rtpack-convert and rtpack-inspect --json name it
   uint64_t unique_triangles = 0;     // stored triangles
   uint64_t instanced_triangles = 0;  // triangles as the scene shows them (instances expanded)
   uint64_t instances = 0;
@@ -98,7 +98,7 @@ struct TraceOptions {
   // Test batching points' culling DAGs first (same hits either way). Off: in core (this API's tracing) the
   // DAG test costs more than the BVH walks it saves (1.3-2.4x slower on the samples); it pays out of core.
   bool cull = false;
-  int threads = 0;       // 0: all cores (TBB); 1: the calling thread only
+  int threads = 0;  // 0: all cores (TBB); 1: the calling thread only
   // trace(): each run of `packet` consecutive rays (4, 8 or 16, from the first ray) goes through the
   // package as one packet (Wu 2016); 0 traces ray by ray. The hits are the same bit for bit; packets
   // are faster on coherent runs such as camera_rays(..., PixelOrder::kTiles) and slower on scattered
@@ -152,8 +152,7 @@ class RTPACK_API Package {
 
   // Closest hit of each ray (hits[i] for rays[i]). Returns the number of rays that hit; fills *stats
   // when given.
-  size_t trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options = {},
-               TraceStats* stats = nullptr) const;
+  size_t trace(const Ray* rays, Hit* hits, size_t count, const TraceOptions& options = {}, TraceStats* stats = nullptr) const;
   // Any hit within [tnear, tfar]: occluded[i] = 1 or 0. Returns the number occluded.
   size_t occluded(const Ray* rays, uint8_t* occluded, size_t count, const TraceOptions& options = {},
                   TraceStats* stats = nullptr) const;

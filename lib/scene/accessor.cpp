@@ -13,9 +13,12 @@ using std::to_string;
 
 int component_bytes(int ct) {
   switch (ct) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
-    case TINYGLTF_COMPONENT_TYPE_SHORT: case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
     default: return 0;
   }
 }
@@ -23,12 +26,32 @@ int component_bytes(int ct) {
 // glTF 2.0 §3.11 "Animations"/"KHR_mesh_quantization": normalized integer -> float mapping.
 double decode_component(const unsigned char* p, int ct, bool normalized) {
   switch (ct) {
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
-    case TINYGLTF_COMPONENT_TYPE_BYTE: { int8_t v; std::memcpy(&v, p, 1); return normalized ? std::max(v / 127.0, -1.0) : v; }
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+      float f;
+      std::memcpy(&f, p, 4);
+      return f;
+    }
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      int8_t v;
+      std::memcpy(&v, p, 1);
+      return normalized ? std::max(v / 127.0, -1.0) : v;
+    }
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? p[0] / 255.0 : p[0];
-    case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t v; std::memcpy(&v, p, 2); return normalized ? std::max(v / 32767.0, -1.0) : v; }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t v; std::memcpy(&v, p, 2); return normalized ? v / 65535.0 : v; }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t v; std::memcpy(&v, p, 4); return normalized ? v / 4294967295.0 : v; }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      int16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? std::max(v / 32767.0, -1.0) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      uint16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? v / 65535.0 : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+      uint32_t v;
+      std::memcpy(&v, p, 4);
+      return normalized ? v / 4294967295.0 : v;
+    }
     default: return 0;
   }
 }
@@ -36,8 +59,16 @@ double decode_component(const unsigned char* p, int ct, bool normalized) {
 uint32_t decode_uint(const unsigned char* p, int ct) {
   switch (ct) {
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return p[0];
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    default: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    default: {
+      uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
   }
 }
 
@@ -72,7 +103,8 @@ std::vector<double> read_components(const tinygltf::Model& m, int a, int compone
   const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
   const int cbytes = component_bytes(acc.componentType);
   if (ncomp != components || cbytes == 0)
-    fail_invalid(ptr + ": accessor " + to_string(a) + " has " + to_string(ncomp) + " components, expected " + to_string(components));
+    fail_invalid(ptr + ": accessor " + to_string(a) + " has " + to_string(ncomp) + " components, expected " +
+                 to_string(components));
   const size_t count = acc.count, elem = size_t(ncomp) * size_t(cbytes);
   // The data is located (and bounds-checked) before the output is allocated from `count`.
   Span s;
@@ -89,10 +121,13 @@ std::vector<double> read_components(const tinygltf::Model& m, int a, int compone
     const size_t sc = size_t(acc.sparse.count);
     const int ict = acc.sparse.indices.componentType;
     const int ib = component_bytes(ict);
-    if (ib == 0 || ict == TINYGLTF_COMPONENT_TYPE_FLOAT || ict == TINYGLTF_COMPONENT_TYPE_BYTE || ict == TINYGLTF_COMPONENT_TYPE_SHORT)
+    if (ib == 0 || ict == TINYGLTF_COMPONENT_TYPE_FLOAT || ict == TINYGLTF_COMPONENT_TYPE_BYTE ||
+        ict == TINYGLTF_COMPONENT_TYPE_SHORT)
       fail_invalid(ptr + "/sparse/indices/componentType: invalid");
-    const Span si = span_of(m, acc.sparse.indices.bufferView, acc.sparse.indices.byteOffset, sc, size_t(ib), false, ptr + "/sparse/indices");
-    const Span sv = span_of(m, acc.sparse.values.bufferView, acc.sparse.values.byteOffset, sc, elem, false, ptr + "/sparse/values");
+    const Span si =
+        span_of(m, acc.sparse.indices.bufferView, acc.sparse.indices.byteOffset, sc, size_t(ib), false, ptr + "/sparse/indices");
+    const Span sv =
+        span_of(m, acc.sparse.values.bufferView, acc.sparse.values.byteOffset, sc, elem, false, ptr + "/sparse/values");
     for (size_t k = 0; k < sc; ++k) {
       const uint32_t idx = decode_uint(si.base + k * size_t(ib), ict);
       if (idx >= count)

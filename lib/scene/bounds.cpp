@@ -91,7 +91,10 @@ class PointSet {
 
  private:
   static constexpr uint32_t kScansBeforeTree = 32;
-  struct Node { Aabb box; uint32_t begin, end, left, right; };  // left = 0: leaf
+  struct Node {
+    Aabb box;
+    uint32_t begin, end, left, right;
+  };                                              // left = 0: leaf
   uint32_t build(uint32_t b, uint32_t e) const {  // once, under once_
     const uint32_t id = uint32_t(nodes_.size());
     nodes_.push_back({Aabb{}, b, e, 0, 0});
@@ -167,7 +170,10 @@ Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t,
   // of 128 bytes each, most of the import of a 10^6-instance forest).
   using Faces = std::array<double, 6>;
   // Seeds: per face, the exact face of the instance with the largest bound (ties: lowest index).
-  struct Seeds { Faces v; std::array<size_t, 6> i; };
+  struct Seeds {
+    Faces v;
+    std::array<size_t, 6> i;
+  };
   Seeds none;
   none.v.fill(kNone);
   none.i.fill(n);
@@ -186,7 +192,8 @@ Aabb compute_world_bounds(const Scene& scene, const std::function<void(uint64_t,
       },
       [](Seeds a, const Seeds& b) {
         for (int side = 0; side < 6; ++side)
-          if (b.v[side] > a.v[side] || (b.v[side] == a.v[side] && b.i[side] < a.i[side])) a.v[side] = b.v[side], a.i[side] = b.i[side];
+          if (b.v[side] > a.v[side] || (b.v[side] == a.v[side] && b.i[side] < a.i[side]))
+            a.v[side] = b.v[side], a.i[side] = b.i[side];
         return a;
       });
   if (seed.i[0] == n) return Aabb{};  // no instance has a vertex

@@ -46,8 +46,7 @@ void attach(tinygltf::Model& m, int a, std::vector<unsigned char>&& bytes, size_
 }
 
 template <class T>
-bool convert_all(const draco::Mesh& mesh, const draco::PointAttribute& att, int components,
-                 std::vector<unsigned char>& out) {
+bool convert_all(const draco::Mesh& mesh, const draco::PointAttribute& att, int components, std::vector<unsigned char>& out) {
   T values[16];
   out.resize(size_t(mesh.num_points()) * size_t(components) * sizeof(T));
   unsigned char* dst = out.data();

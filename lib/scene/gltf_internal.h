@@ -63,8 +63,7 @@ void decode_draco(Document& doc);
 std::vector<Vec3f> read_vec3(const tinygltf::Model& model, int accessor, const std::string& pointer);
 std::vector<uint32_t> read_indices(const tinygltf::Model& model, int accessor, const std::string& pointer);
 // Reads `components` (1..4) per element as double (normalized integers mapped per the glTF spec).
-std::vector<double> read_components(const tinygltf::Model& model, int accessor, int components,
-                                    const std::string& pointer);
+std::vector<double> read_components(const tinygltf::Model& model, int accessor, int components, const std::string& pointer);
 
 // Builds one Mesh from all triangle primitives of glTF mesh `gltf_mesh`.
 // `normals` / `uvs`: also read NORMAL / TEXCOORD_0 (see ImportOptions).

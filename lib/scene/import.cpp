@@ -35,8 +35,7 @@ void check_float_bounds(const Scene& scene) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.3g", worst);
     fail_invalid("/nodes/" + std::to_string(scene.instances[i].node) + ": world transform puts vertices of " +
-                 scene.meshes[scene.instances[i].mesh].name + " at |coordinate| " + buf +
-                 ", not finite in float");
+                 scene.meshes[scene.instances[i].mesh].name + " at |coordinate| " + buf + ", not finite in float");
   }
   fail_invalid("/nodes: world bounds are not finite in float");
 }
@@ -54,8 +53,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   if (which >= 0 && which >= n_scenes)
     throw Error(ExitCode::kUsage, "--scene " + to_string(which) + ": the file has " + to_string(n_scenes) + " scenes");
   if (which < 0) which = doc.model.defaultScene >= 0 ? doc.model.defaultScene : (n_scenes > 0 ? 0 : -1);
-  if (which < 0 && !doc.model.nodes.empty())
-    doc.warnings.push_back("/scenes: the file defines no scene; using every root node");
+  if (which < 0 && !doc.model.nodes.empty()) doc.warnings.push_back("/scenes: the file defines no scene; using every root node");
   scene.gltf_scene = which;
   gltf::walk_nodes(doc, which, scene);
 

@@ -40,14 +40,27 @@ struct Fd {
 // Extensions whose meaning we implement, or which only concern materials/textures/lights and so
 // cannot change the geometry we import.
 const std::set<std::string>& known_extensions() {
-  static const std::set<std::string> k = {
-      "KHR_draco_mesh_compression", "KHR_mesh_quantization", "EXT_meshopt_compression",
-      "EXT_mesh_gpu_instancing", "KHR_texture_transform", "KHR_texture_basisu", "EXT_texture_webp",
-      "KHR_lights_punctual", "KHR_materials_unlit", "KHR_materials_pbrSpecularGlossiness",
-      "KHR_materials_clearcoat", "KHR_materials_transmission", "KHR_materials_volume",
-      "KHR_materials_ior", "KHR_materials_specular", "KHR_materials_sheen",
-      "KHR_materials_emissive_strength", "KHR_materials_iridescence", "KHR_materials_variants",
-      "KHR_materials_anisotropy", "KHR_materials_dispersion"};
+  static const std::set<std::string> k = {"KHR_draco_mesh_compression",
+                                          "KHR_mesh_quantization",
+                                          "EXT_meshopt_compression",
+                                          "EXT_mesh_gpu_instancing",
+                                          "KHR_texture_transform",
+                                          "KHR_texture_basisu",
+                                          "EXT_texture_webp",
+                                          "KHR_lights_punctual",
+                                          "KHR_materials_unlit",
+                                          "KHR_materials_pbrSpecularGlossiness",
+                                          "KHR_materials_clearcoat",
+                                          "KHR_materials_transmission",
+                                          "KHR_materials_volume",
+                                          "KHR_materials_ior",
+                                          "KHR_materials_specular",
+                                          "KHR_materials_sheen",
+                                          "KHR_materials_emissive_strength",
+                                          "KHR_materials_iridescence",
+                                          "KHR_materials_variants",
+                                          "KHR_materials_anisotropy",
+                                          "KHR_materials_dispersion"};
   return k;
 }
 
@@ -97,8 +110,7 @@ bool fs_write(std::string* err, const std::string&, const std::vector<unsigned c
   if (err) *err += "writing is disabled\n";
   return false;
 }
-bool no_image_loader(tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                     const unsigned char*, int, void*) {
+bool no_image_loader(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
   return true;  // images are never decoded
 }
 
@@ -194,7 +206,8 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     uint64_t off = 12;
     int chunk = 0;
     while (off < length) {
-      if (off + 8 > length) fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
+      if (off + 8 > length)
+        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
       char ch[8];
       read_exact(in.fd, off, ch, 8, path);
       const uint64_t clen = read_u32(ch), ctype = read_u32(ch + 4);
@@ -237,8 +250,8 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
   }
   if (!doc.json.is_object()) fail_invalid("/: the glTF document is not a JSON object");
   const json& j = doc.json;
-  if (!j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") ||
-      !j["asset"]["version"].is_string() || j["asset"]["version"].get<std::string>().rfind("2.", 0) != 0)
+  if (!j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") || !j["asset"]["version"].is_string() ||
+      j["asset"]["version"].get<std::string>().rfind("2.", 0) != 0)
     fail_invalid("/asset/version: not a glTF 2.x file");
 
   if (j.contains("extensionsRequired")) {
@@ -294,12 +307,12 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
         if (real < 0) fail_invalid(ptr + "/uri: data URI is not base64");
       } else {
         const fs::path p = confined_path(uri, ptr, doc.base_dir, roots);
-        struct stat st{};
+        struct stat st {};
         if (::stat(p.c_str(), &st) != 0)
           throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri + "' (looked in " + doc.base_dir + ")");
         if (!S_ISREG(st.st_mode))
-          throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri + "': " +
-                                              (S_ISDIR(st.st_mode) ? "is a directory" : "is not a regular file"));
+          throw Error(ExitCode::kInputIo, ptr + "/uri: cannot open '" + uri +
+                                              "': " + (S_ISDIR(st.st_mode) ? "is a directory" : "is not a regular file"));
         real = int64_t(st.st_size);
         // Size checked before reading: the file is read only when it is exactly byteLength bytes.
         if (uint64_t(real) > declared)
@@ -332,7 +345,7 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
       } catch (const Error&) {
         continue;
       }
-      struct stat st{};
+      struct stat st {};
       if (::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode)) doc.input.image_file_bytes += uint64_t(st.st_size);
     }
   }

@@ -12,8 +12,7 @@ namespace {
 // glTF 2.0 §3.7.2.1: NORMAL is a unit VEC3 (float, or normalized byte/short with
 // KHR_mesh_quantization). Dequantized normals are renormalized; a zero or non-finite one becomes
 // (0,0,0) ("none given") and is counted.
-std::vector<Vec3f> read_normals(const tinygltf::Model& model, int accessor, size_t count, const std::string& ptr,
-                                uint64_t& bad) {
+std::vector<Vec3f> read_normals(const tinygltf::Model& model, int accessor, size_t count, const std::string& ptr, uint64_t& bad) {
   const std::vector<Vec3f> raw = read_vec3(model, accessor, ptr);
   if (raw.size() != count)
     fail_invalid(ptr + ": " + std::to_string(raw.size()) + " normals for " + std::to_string(count) + " positions");
@@ -36,8 +35,7 @@ std::vector<Vec3f> read_normals(const tinygltf::Model& model, int accessor, size
 }
 
 // TEXCOORD_0: VEC2 float or normalized unsigned byte/short. Non-finite values become (0,0), counted.
-std::vector<Vec2f> read_uvs(const tinygltf::Model& model, int accessor, size_t count, const std::string& ptr,
-                            uint64_t& bad) {
+std::vector<Vec2f> read_uvs(const tinygltf::Model& model, int accessor, size_t count, const std::string& ptr, uint64_t& bad) {
   const std::vector<double> raw = read_components(model, accessor, 2, ptr);
   if (raw.size() != 2 * count)
     fail_invalid(ptr + ": " + std::to_string(raw.size() / 2) + " texture coordinates for " + std::to_string(count) +
@@ -175,7 +173,8 @@ Mesh build_mesh(const tinygltf::Model& model, int gltf_mesh, std::vector<std::st
         auto t = read_uvs(model, it->second, pos.size(), pp + "/attributes/TEXCOORD_0", bad_uvs);
         UvTransform xf;
         if (!material_uv_transform(model, prim.material, xf))
-          warnings.push_back(pp + ": its material's textures use different KHR_texture_transform; TEXCOORD_0 stored untransformed");
+          warnings.push_back(pp +
+                             ": its material's textures use different KHR_texture_transform; TEXCOORD_0 stored untransformed");
         else if (!(xf == UvTransform{}))
           for (Vec2f& uv : t) uv = xf.apply(uv);
         uvs.insert(uvs.end(), t.begin(), t.end());
@@ -199,11 +198,9 @@ Mesh build_mesh(const tinygltf::Model& model, int gltf_mesh, std::vector<std::st
   // A mesh where no primitive has the attribute stores none of it (store no more than the scene has).
   if (any_normals) mesh.normals = std::move(normals);
   if (any_uvs) mesh.uvs = std::move(uvs);
-  if (bad_normals)
-    warnings.push_back(mp + ": " + to_string(bad_normals) + " zero or non-finite normals stored as (0,0,0)");
+  if (bad_normals) warnings.push_back(mp + ": " + to_string(bad_normals) + " zero or non-finite normals stored as (0,0,0)");
   if (bad_uvs) warnings.push_back(mp + ": " + to_string(bad_uvs) + " non-finite texture coordinates stored as (0,0)");
-  if (skipped_nontriangle)
-    warnings.push_back(mp + ": " + to_string(skipped_nontriangle) + " point/line primitives skipped");
+  if (skipped_nontriangle) warnings.push_back(mp + ": " + to_string(skipped_nontriangle) + " point/line primitives skipped");
   return mesh;
 }
 

@@ -21,8 +21,8 @@ Mat4d local_matrix(const tinygltf::Node& n) {
   for (size_t i = 0; i < 3 && i < n.translation.size(); ++i) t[i] = n.translation[i];
   for (size_t i = 0; i < 3 && i < n.scale.size(); ++i) s[i] = n.scale[i];
   if (n.rotation.size() == 4) {
-    const double len = std::sqrt(n.rotation[0] * n.rotation[0] + n.rotation[1] * n.rotation[1] +
-                                 n.rotation[2] * n.rotation[2] + n.rotation[3] * n.rotation[3]);
+    const double len = std::sqrt(n.rotation[0] * n.rotation[0] + n.rotation[1] * n.rotation[1] + n.rotation[2] * n.rotation[2] +
+                                 n.rotation[3] * n.rotation[3]);
     if (len > 0)
       for (int i = 0; i < 4; ++i) q[i] = n.rotation[size_t(i)] / len;
   }
@@ -36,7 +36,10 @@ Affine3x4 strip_scale(const Mat4d& g, bool& degenerate) {
   degenerate = false;
   auto norm = [&](Vec3d v) {
     const double l = length(v);
-    if (!(l > 1e-300) || !std::isfinite(l)) { degenerate = true; return v; }
+    if (!(l > 1e-300) || !std::isfinite(l)) {
+      degenerate = true;
+      return v;
+    }
     return v * (1.0 / l);
   };
   c[0] = norm(c[0]);
@@ -93,8 +96,9 @@ void check_float_range(const Document& doc, int node, const Mat4d& world, uint64
     if (!std::isfinite(v) || std::abs(v) > double(FLT_MAX)) {
       char buf[32];
       std::snprintf(buf, sizeof buf, "%.3g", v);
-      const std::string what = gpu_instance == kNoIndex ? std::string("world transform")
-                                                        : "world transform of EXT_mesh_gpu_instancing instance " + to_string(gpu_instance);
+      const std::string what = gpu_instance == kNoIndex
+                                   ? std::string("world transform")
+                                   : "world transform of EXT_mesh_gpu_instancing instance " + to_string(gpu_instance);
       fail_invalid(transform_pointer(doc, node) + ": " + what + " is not finite in float (entry " + buf + ")");
     }
 }
@@ -150,13 +154,16 @@ void add_gpu_instances(const Document& doc, int node, const Mat4d& global, Scene
   const uint32_t mesh = uint32_t(doc.model.nodes[size_t(node)].mesh);
   auto instance = [&](size_t i) {
     double ti[3] = {0, 0, 0}, qi[4] = {0, 0, 0, 1}, si[3] = {1, 1, 1};
-    if (!t.empty()) for (int k = 0; k < 3; ++k) ti[k] = t[3 * i + size_t(k)];
-    if (!s.empty()) for (int k = 0; k < 3; ++k) si[k] = s[3 * i + size_t(k)];
+    if (!t.empty())
+      for (int k = 0; k < 3; ++k) ti[k] = t[3 * i + size_t(k)];
+    if (!s.empty())
+      for (int k = 0; k < 3; ++k) si[k] = s[3 * i + size_t(k)];
     if (!r.empty()) {
       double len = 0;
       for (int k = 0; k < 4; ++k) len += r[4 * i + size_t(k)] * r[4 * i + size_t(k)];
       len = std::sqrt(len);
-      if (len > 0) for (int k = 0; k < 4; ++k) qi[k] = r[4 * i + size_t(k)] / len;
+      if (len > 0)
+        for (int k = 0; k < 4; ++k) qi[k] = r[4 * i + size_t(k)] / len;
     }
     for (int k = 0; k < 3; ++k)
       if (!std::isfinite(ti[k]) || !std::isfinite(si[k]))
@@ -174,15 +181,14 @@ void add_gpu_instances(const Document& doc, int node, const Mat4d& global, Scene
         out.instances[base + i] = instance(i);
       } catch (const Error&) {
         size_t seen = first_bad.load();
-        while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {
-        }
+        while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
         return;
       }
     }
   });
   if (first_bad.load() < count) {
     out.instances.resize(base);
-    instance(first_bad.load());  // throws its message
+    instance(first_bad.load());                                                       // throws its message
     fail_invalid(ep + ": instance " + to_string(first_bad.load()) + " was refused");  // not reached
   }
 }
@@ -204,8 +210,15 @@ void walk_nodes(const Document& doc, int scene, Scene& out) {
   // Iterative pre-order walk (validate_json guarantees a forest, so this terminates): the visited nodes
   // with their world transforms first, so that the instances can be counted and allocated once (grown
   // node by node, a 10^6-instance forest reallocated and re-faulted its 120 MB six times).
-  struct Item { int node; Mat4d parent; };
-  struct Visit { int node; Mat4d global; bool gpu; };
+  struct Item {
+    int node;
+    Mat4d parent;
+  };
+  struct Visit {
+    int node;
+    Mat4d global;
+    bool gpu;
+  };
   std::vector<Item> stack;
   std::vector<Visit> visits;
   size_t instance_count = 0;
@@ -228,8 +241,10 @@ void walk_nodes(const Document& doc, int scene, Scene& out) {
   for (const Visit& v : visits) {
     const tinygltf::Node& n = m.nodes[size_t(v.node)];
     if (n.mesh >= 0) {
-      if (v.gpu) add_gpu_instances(doc, v.node, v.global, out);
-      else add_instance(out, uint32_t(n.mesh), v.global, v.node, kNoIndex);
+      if (v.gpu)
+        add_gpu_instances(doc, v.node, v.global, out);
+      else
+        add_instance(out, uint32_t(n.mesh), v.global, v.node, kNoIndex);
     }
     if (n.camera >= 0) add_camera(doc, v.node, v.global, out);
   }

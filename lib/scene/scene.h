@@ -30,9 +30,9 @@ struct TriangleSource {
 struct Mesh {
   std::string name;
   std::vector<Vec3f> positions;
-  std::vector<uint32_t> indices;             // 3 per triangle, all < positions.size()
-  std::vector<SourcePrimitive> primitives;   // the glTF primitives this mesh was built from
-  std::vector<TriangleSource> source;        // one per triangle
+  std::vector<uint32_t> indices;            // 3 per triangle, all < positions.size()
+  std::vector<SourcePrimitive> primitives;  // the glTF primitives this mesh was built from
+  std::vector<TriangleSource> source;       // one per triangle
   // Optional per-vertex attributes, loaded only when asked for (ImportOptions::attributes,
   // rtpack-convert --attributes): each is empty or has exactly one entry per position.
   // normals: glTF NORMAL (unit length; (0,0,0) = "none given" for vertices of a primitive without
@@ -47,9 +47,9 @@ struct Mesh {
 // A placement of a mesh in the world.
 struct Instance {
   uint32_t mesh = 0;
-  Affine3x4 transform;            // local -> world (node hierarchy composed in double, then stored)
-  bool mirrored = false;          // det(transform) < 0: triangle winding flips
-  uint32_t node = kNoIndex;       // glTF node index
+  Affine3x4 transform;               // local -> world (node hierarchy composed in double, then stored)
+  bool mirrored = false;             // det(transform) < 0: triangle winding flips
+  uint32_t node = kNoIndex;          // glTF node index
   uint32_t gpu_instance = kNoIndex;  // index within the node's EXT_mesh_gpu_instancing, or kNoIndex
 };
 
@@ -61,7 +61,7 @@ struct Camera {
   Type type = Type::kPerspective;
   double yfov = 0, aspect_ratio = 0, znear = 0, zfar = 0;  // perspective (aspect/zfar 0 = unset)
   double xmag = 0, ymag = 0;                               // orthographic (znear/zfar shared)
-  Affine3x4 world;  // camera -> world, rotation + translation only (scale stripped)
+  Affine3x4 world;                                         // camera -> world, rotation + translation only (scale stripped)
 };
 
 // What the importer read to build the scene (rtpack-convert's input bytes): the glTF or .glb file and
@@ -71,8 +71,8 @@ struct InputFiles {
   uint64_t buffer_bytes = 0;  // external .bin buffers read (data URIs and the .glb BIN chunk are in gltf_bytes)
   uint32_t buffer_files = 0;
   std::vector<std::string> buffer_paths;  // the external buffer files read (an output must not replace one)
-  uint32_t images = 0;             // glTF images (none is read)
-  uint64_t image_file_bytes = 0;   // sizes of the external image files that exist (stat only)
+  uint32_t images = 0;                    // glTF images (none is read)
+  uint64_t image_file_bytes = 0;          // sizes of the external image files that exist (stat only)
   uint64_t read_bytes() const { return gltf_bytes + buffer_bytes; }
 };
 

@@ -66,8 +66,7 @@ std::string foreign_format_message(std::string_view head) {
   while (i < head.size() && (head[i] == ' ' || head[i] == '\t' || head[i] == '\r' || head[i] == '\n')) ++i;
   if (i == head.size()) return "";  // empty or only white space: the parser says so
   const char c = head[i];
-  if (c == '{' || c == '[' || c == '"' || c == '-' || (c >= '0' && c <= '9') || c == 't' || c == 'f' || c == 'n')
-    return "";
+  if (c == '{' || c == '[' || c == '"' || c == '-' || (c >= '0' && c <= '9') || c == 't' || c == 'f' || c == 'n') return "";
   const std::string what = known_format(head);
   const std::string hint =
       "rtpack reads glTF 2.0 (.gltf or .glb); convert it first, e.g. `assimp export input.ext output.glb` (Debian "

@@ -65,28 +65,36 @@ nlohmann::json scene_summary_json(const Scene& s) {
   json bounds = nullptr;
   if (!s.bounds.empty())
     bounds = {{"min", {s.bounds.lo.x, s.bounds.lo.y, s.bounds.lo.z}}, {"max", {s.bounds.hi.x, s.bounds.hi.y, s.bounds.hi.z}}};
-  return {{"source", utf8_display(s.source_path)},   {"scene", s.gltf_scene},
-          {"meshes", s.meshes.size()}, {"instances", s.instances.size()},
+  return {{"source", utf8_display(s.source_path)},
+          {"scene", s.gltf_scene},
+          {"meshes", s.meshes.size()},
+          {"instances", s.instances.size()},
           {"mirrored_instances", mirrored},
           {"unique_triangles", s.unique_triangles()},
           {"instanced_triangles", s.instanced_triangles()},
-          {"bounds", bounds},          {"cameras", cams},
-          {"mesh_table", meshes},      {"warnings", s.warnings}};
+          {"bounds", bounds},
+          {"cameras", cams},
+          {"mesh_table", meshes},
+          {"warnings", s.warnings}};
 }
 
 std::string scene_summary_text(const Scene& s) {
   const nlohmann::json j = scene_summary_json(s);
   std::string o;
-  o += "source               " + s.source_path + (s.gltf_scene >= 0 ? " (scene " + std::to_string(s.gltf_scene) + ")" : "") + "\n";
+  o +=
+      "source               " + s.source_path + (s.gltf_scene >= 0 ? " (scene " + std::to_string(s.gltf_scene) + ")" : "") + "\n";
   o += "meshes               " + group(s.meshes.size()) + "\n";
-  o += "instances            " + group(s.instances.size()) + " (" + group(j["mirrored_instances"].get<uint64_t>()) + " mirrored)\n";
+  o += "instances            " + group(s.instances.size()) + " (" + group(j["mirrored_instances"].get<uint64_t>()) +
+       " mirrored)\n";
   o += "unique triangles     " + group(s.unique_triangles()) + "\n";
   o += "instanced triangles  " + group(s.instanced_triangles()) + "\n";
   if (s.bounds.empty()) {
     o += "bounds               (empty scene)\n";
   } else {
-    o += "bounds min           " + fmt("%.7g", s.bounds.lo.x) + " " + fmt("%.7g", s.bounds.lo.y) + " " + fmt("%.7g", s.bounds.lo.z) + "\n";
-    o += "bounds max           " + fmt("%.7g", s.bounds.hi.x) + " " + fmt("%.7g", s.bounds.hi.y) + " " + fmt("%.7g", s.bounds.hi.z) + "\n";
+    o += "bounds min           " + fmt("%.7g", s.bounds.lo.x) + " " + fmt("%.7g", s.bounds.lo.y) + " " +
+         fmt("%.7g", s.bounds.lo.z) + "\n";
+    o += "bounds max           " + fmt("%.7g", s.bounds.hi.x) + " " + fmt("%.7g", s.bounds.hi.y) + " " +
+         fmt("%.7g", s.bounds.hi.z) + "\n";
   }
   o += "cameras              " + std::to_string(s.cameras.size()) + "\n";
   for (const auto& c : j["cameras"])

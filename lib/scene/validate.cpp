@@ -35,8 +35,7 @@ const json& array_of(const json& root, const char* name) {
 }
 
 // An optional (or required) integer reference `obj[key]` into an array of `n` elements.
-bool check_ref(const json& obj, const char* key, size_t n, const std::string& ptr, const char* target,
-               bool required) {
+bool check_ref(const json& obj, const char* key, size_t n, const std::string& ptr, const char* target, bool required) {
   if (!obj.contains(key)) {
     if (required) fail_invalid(ptr + ": missing required '" + key + "'");
     return false;
@@ -45,8 +44,8 @@ bool check_ref(const json& obj, const char* key, size_t n, const std::string& pt
   if (!v.is_number_integer()) fail_invalid(ptr + "/" + key + ": not an integer");
   const int64_t i = v.get<int64_t>();
   if (i < 0 || uint64_t(i) >= n)
-    fail_invalid(ptr + "/" + key + ": " + target + " " + to_string(i) + " out of range (" + to_string(n) + " " +
-                 target + (std::string(target) == "mesh" ? "es)" : "s)"));
+    fail_invalid(ptr + "/" + key + ": " + target + " " + to_string(i) + " out of range (" + to_string(n) + " " + target +
+                 (std::string(target) == "mesh" ? "es)" : "s)"));
   return true;
 }
 
@@ -69,9 +68,12 @@ int components_of(const std::string& type) {
 
 int component_size(int64_t ct) {
   switch (ct) {
-    case 5120: case 5121: return 1;
-    case 5122: case 5123: return 2;
-    case 5125: case 5126: return 4;
+    case 5120:
+    case 5121: return 1;
+    case 5122:
+    case 5123: return 2;
+    case 5125:
+    case 5126: return 4;
     default: return 0;
   }
 }
@@ -94,8 +96,7 @@ void check_span(const json& views, int64_t view, uint64_t offset, uint64_t count
 // Accessors without a bufferView are zero-filled (plus sparse values): they may not describe more bytes
 // than the file's buffers hold, or kMaxUnbackedBytes, whichever is larger (a 1 KB file must not ask
 // for gigabytes). Accessors a Draco primitive decodes into are sized by the payload, not by `count`.
-void validate_accessors(const json& accessors, const json& views, uint64_t backed_bytes,
-                        const std::vector<bool>& draco_decoded) {
+void validate_accessors(const json& accessors, const json& views, uint64_t backed_bytes, const std::vector<bool>& draco_decoded) {
   for (size_t i = 0; i < accessors.size(); ++i) {
     const json& a = accessors[i];
     const std::string ptr = "/accessors/" + to_string(i);
@@ -106,8 +107,8 @@ void validate_accessors(const json& accessors, const json& views, uint64_t backe
       fail_invalid(ptr + "/type: missing or invalid");
     const uint64_t count = get_u64(a, "count", 0, ptr);
     if (count == 0) fail_invalid(ptr + "/count: missing or zero");
-    const uint64_t elem = uint64_t(component_size(a["componentType"].get<int64_t>())) *
-                          uint64_t(components_of(a["type"].get<std::string>()));
+    const uint64_t elem =
+        uint64_t(component_size(a["componentType"].get<int64_t>())) * uint64_t(components_of(a["type"].get<std::string>()));
     if (check_ref(a, "bufferView", views.size(), ptr, "bufferView", false)) {
       check_span(views, a["bufferView"].get<int64_t>(), get_u64(a, "byteOffset", 0, ptr), count, elem, true, ptr);
     } else if (!draco_decoded[i]) {
@@ -134,8 +135,8 @@ void validate_accessors(const json& accessors, const json& views, uint64_t backe
                  uint64_t(component_size(ict)), false, sp + "/indices");
       const json& sv = s["values"];
       check_ref(sv, "bufferView", views.size(), sp + "/values", "bufferView", true);
-      check_span(views, sv["bufferView"].get<int64_t>(), get_u64(sv, "byteOffset", 0, sp + "/values"), sc, elem,
-                 false, sp + "/values");
+      check_span(views, sv["bufferView"].get<int64_t>(), get_u64(sv, "byteOffset", 0, sp + "/values"), sc, elem, false,
+                 sp + "/values");
     }
   }
 }
@@ -154,8 +155,8 @@ void validate_meshes(const json& meshes, const json& accessors, size_t n_views) 
         fail_invalid(pp + "/attributes: missing or not an object");
       for (auto it = pr["attributes"].begin(); it != pr["attributes"].end(); ++it)
         check_ref(pr["attributes"], it.key().c_str(), n_accessors, pp + "/attributes", "accessor", true);
-      const bool draco = pr.contains("extensions") && pr["extensions"].is_object() &&
-                         pr["extensions"].contains("KHR_draco_mesh_compression");
+      const bool draco =
+          pr.contains("extensions") && pr["extensions"].is_object() && pr["extensions"].contains("KHR_draco_mesh_compression");
       // glTF 2.0 §3.6.2.1 lets an accessor without a bufferView be zeros; as indices that is no triangle
       // at all (tinygltf refuses it with "invalid bufferView", naming neither primitive nor pointer).
       if (check_ref(pr, "indices", n_accessors, pp, "accessor", false) && !draco) {
@@ -210,8 +211,8 @@ void validate_views(const json& views, const std::vector<int64_t>& buffer_sizes,
     if (!bv.contains("byteLength")) fail_invalid(ptr + ": missing required 'byteLength'");
     const int64_t b = bv["buffer"].get<int64_t>();
     if (off + len < off || off + len > uint64_t(buffer_sizes[size_t(b)]))
-      fail_invalid(ptr + ": bytes " + to_string(off) + ".." + to_string(off + len) + " overrun buffer " + to_string(b) +
-                   " (" + to_string(buffer_sizes[size_t(b)]) + " bytes)");
+      fail_invalid(ptr + ": bytes " + to_string(off) + ".." + to_string(off + len) + " overrun buffer " + to_string(b) + " (" +
+                   to_string(buffer_sizes[size_t(b)]) + " bytes)");
     if (bv.contains("byteStride")) {
       const uint64_t s = get_u64(bv, "byteStride", 0, ptr);
       if (s < 4 || s > 252 || s % 4) fail_invalid(ptr + "/byteStride: " + to_string(s) + " not a multiple of 4 in 4..252");
@@ -231,7 +232,8 @@ void validate_views(const json& views, const std::vector<int64_t>& buffer_sizes,
       if (eo + el < eo || eo + el > uint64_t(buffer_sizes[size_t(eb)]))
         fail_invalid(ep + ": compressed bytes overrun buffer " + to_string(eb));
       if (stride == 0 || stride > 256 || count == 0 || count > (uint64_t(1) << 32) || stride * count != len)
-        fail_invalid(ep + ": count " + to_string(count) + " × byteStride " + to_string(stride) + " != byteLength " + to_string(len));
+        fail_invalid(ep + ": count " + to_string(count) + " × byteStride " + to_string(stride) + " != byteLength " +
+                     to_string(len));
       if (len > kMeshoptMaxExpansion * el)
         fail_invalid(ep + ": meshopt cannot decode " + to_string(len) + " bytes from " + to_string(el) +
                      " compressed bytes (at most " + to_string(kMeshoptMaxExpansion) + "x expansion)");

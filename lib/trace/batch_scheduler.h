@@ -75,9 +75,21 @@ class Scheduler {
  public:
   Scheduler(Host& host, const fmt::Ray* rays, size_t n, bool cull, uint32_t depth, TraceBlock& trace_block,
             CurrentTfar& current_tfar, Stopped& stopped)
-      : h_(host), rays_(rays), n_(n), cull_(cull), depth_(depth), trace_block_(trace_block), current_tfar_(current_tfar),
-        stopped_(stopped), pos_(n), walk_tfar_(n, 0.f), pending_(n, 0), next_walk_(n, 0), walk_over_(n, 0),
-        locks_(std::make_unique<RayLocks>()), queue_(host.n_points()) {}
+      : h_(host),
+        rays_(rays),
+        n_(n),
+        cull_(cull),
+        depth_(depth),
+        trace_block_(trace_block),
+        current_tfar_(current_tfar),
+        stopped_(stopped),
+        pos_(n),
+        walk_tfar_(n, 0.f),
+        pending_(n, 0),
+        next_walk_(n, 0),
+        walk_over_(n, 0),
+        locks_(std::make_unique<RayLocks>()),
+        queue_(host.n_points()) {}
 
   // The whole call: first walks, then rounds until no ray waits anywhere.
   OutOfCoreStats run() {

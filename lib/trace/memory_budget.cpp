@@ -26,9 +26,11 @@ uint64_t parse_memory_budget(const std::string& text, uint64_t on_demand) {
     if (v <= 0 || v > 100) return bad("a percentage in (0, 100]");
     bytes = std::ceil(double(on_demand) * v / 100.0);
   } else {
-    static const struct { const char* name; double scale; } kUnits[] = {
-        {"", 1},      {"B", 1},      {"KiB", 1024.0}, {"MiB", 1048576.0}, {"GiB", 1073741824.0}, {"TiB", 1099511627776.0},
-        {"KB", 1e3}, {"MB", 1e6},   {"GB", 1e9},     {"TB", 1e12}};
+    static const struct {
+      const char* name;
+      double scale;
+    } kUnits[] = {{"", 1},     {"B", 1},    {"KiB", 1024.0}, {"MiB", 1048576.0}, {"GiB", 1073741824.0}, {"TiB", 1099511627776.0},
+                  {"KB", 1e3}, {"MB", 1e6}, {"GB", 1e9},     {"TB", 1e12}};
     bool known = false;
     for (const auto& u : kUnits)
       if (unit == u.name) bytes = std::floor(v * u.scale), known = true;

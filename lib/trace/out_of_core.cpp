@@ -116,7 +116,8 @@ Resident read_resident(const PackageReader& r) {
   s.grids = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, n_grids, false);
   if (s.grids) {
     if (n_grids != s.n_points)
-      fail_invalid(dv.label() + ": " + std::to_string(n_grids) + " culling grids for " + std::to_string(s.n_points) + " batching points");
+      fail_invalid(dv.label() + ": " + std::to_string(n_grids) + " culling grids for " + std::to_string(s.n_points) +
+                   " batching points");
     const int64_t pi = r.find(fmt::ChunkKind::kDagPool, 0);
     if (pi < 0) fail_invalid(dv.label() + ": culling grids but no DAG pool chunk");
     const AlignedBytes& b = must_read(r, fmt::ChunkKind::kDagPool, s.dag_bytes);
@@ -164,35 +165,40 @@ class Batched final : public OutOfCoreTracer {
   OutOfCoreStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& o) override {
     for (size_t i = 0; i < n; ++i) hits[i] = {kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0};
     std::vector<uint32_t> best_walk(n, kNone);  // walk index of the point that gave hits[i]
-    return run(rays, n, o, speculate_, [&](const SceneView<W, B>& view, const uint32_t* global_ids, const Visit* visits,
-                                           const fmt::Ray* local, size_t k, RayLocks& locks) {
-      fmt::Hit h[kBlock];
-      trace_closest<W, B>(view, local, h, k, o);
-      for (size_t j = 0; j < k; ++j) {
-        if (!(h[j].t < kInf)) continue;
-        const uint32_t i = visits[j].ray;
-        // Nearer wins; at equal t the earlier point in walk order, as when the points are visited one by one.
-        auto lock = locks.hold(i);
-        fmt::Hit& best = hits[i];
-        if (h[j].t < best.t || (h[j].t == best.t && visits[j].walk < best_walk[i])) {
-          best = h[j];
-          best.instance = global_ids[h[j].instance];
-          best_walk[i] = visits[j].walk;
-        }
-      }
-    }, [&](size_t i) { return hits[i].t < kInf ? hits[i].t : rays[i].tfar; }, [](size_t) { return false; });
+    return run(
+        rays, n, o, speculate_,
+        [&](const SceneView<W, B>& view, const uint32_t* global_ids, const Visit* visits, const fmt::Ray* local, size_t k,
+            RayLocks& locks) {
+          fmt::Hit h[kBlock];
+          trace_closest<W, B>(view, local, h, k, o);
+          for (size_t j = 0; j < k; ++j) {
+            if (!(h[j].t < kInf)) continue;
+            const uint32_t i = visits[j].ray;
+            // Nearer wins; at equal t the earlier point in walk order, as when the points are visited one by one.
+            auto lock = locks.hold(i);
+            fmt::Hit& best = hits[i];
+            if (h[j].t < best.t || (h[j].t == best.t && visits[j].walk < best_walk[i])) {
+              best = h[j];
+              best.instance = global_ids[h[j].instance];
+              best_walk[i] = visits[j].walk;
+            }
+          }
+        },
+        [&](size_t i) { return hits[i].t < kInf ? hits[i].t : rays[i].tfar; }, [](size_t) { return false; });
   }
 
   OutOfCoreStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& o) override {
     std::fill(occluded, occluded + n, uint8_t(0));
-    return run(rays, n, o, speculate_, [&](const SceneView<W, B>& view, const uint32_t*, const Visit* visits,
-                                           const fmt::Ray* local, size_t k, RayLocks&) {
-      uint8_t occ[kBlock];
-      trace_any<W, B>(view, local, occ, k, o);
-      for (size_t j = 0; j < k; ++j)
-        if (occ[j]) std::atomic_ref<uint8_t>(occluded[visits[j].ray]).store(1, std::memory_order_relaxed);
-    }, [&](size_t i) { return rays[i].tfar; },
-    [&](size_t i) { return std::atomic_ref<uint8_t>(occluded[i]).load(std::memory_order_relaxed) != 0; });
+    return run(
+        rays, n, o, speculate_,
+        [&](const SceneView<W, B>& view, const uint32_t*, const Visit* visits, const fmt::Ray* local, size_t k, RayLocks&) {
+          uint8_t occ[kBlock];
+          trace_any<W, B>(view, local, occ, k, o);
+          for (size_t j = 0; j < k; ++j)
+            if (occ[j]) std::atomic_ref<uint8_t>(occluded[visits[j].ray]).store(1, std::memory_order_relaxed);
+        },
+        [&](size_t i) { return rays[i].tfar; },
+        [&](size_t i) { return std::atomic_ref<uint8_t>(occluded[i]).load(std::memory_order_relaxed) != 0; });
   }
 
   OutOfCoreStats multi(const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits, uint32_t* counts,
@@ -201,19 +207,22 @@ class Batched final : public OutOfCoreTracer {
     std::fill(hits, hits + n * max_hits, fmt::Hit{kInf, fmt::Hit::kNone, fmt::Hit::kNone, 0, 0});
     std::fill(counts, counts + n, 0u);
     // One point at a time (depth 1): a ray's list is merged in walk order, its N-th hit bounding the next.
-    return run(rays, n, o, 1, [&](const SceneView<W, B>& view, const uint32_t* global_ids, const Visit* visits,
-                                  const fmt::Ray* local, size_t k, RayLocks&) {
-      thread_local std::vector<fmt::Hit> point_hits, scratch;
-      uint32_t c[kBlock];
-      point_hits.resize(k * max_hits);
-      trace_multi<W, B>(view, local, k, max_hits, point_hits.data(), c, o);
-      for (size_t j = 0; j < k; ++j) {  // depth 1: a ray waits at one point at a time, its list is this task's
-        const uint32_t i = visits[j].ray;
-        counts[i] = merge_point_hits(hits + size_t(i) * max_hits, counts[i], max_hits, point_hits.data() + j * max_hits,
-                                     c[j], global_ids, scratch);
-      }
-    }, [&](size_t i) { return counts[i] == max_hits ? hits[i * max_hits + max_hits - 1].t : rays[i].tfar; },
-    [](size_t) { return false; });
+    return run(
+        rays, n, o, 1,
+        [&](const SceneView<W, B>& view, const uint32_t* global_ids, const Visit* visits, const fmt::Ray* local, size_t k,
+            RayLocks&) {
+          thread_local std::vector<fmt::Hit> point_hits, scratch;
+          uint32_t c[kBlock];
+          point_hits.resize(k * max_hits);
+          trace_multi<W, B>(view, local, k, max_hits, point_hits.data(), c, o);
+          for (size_t j = 0; j < k; ++j) {  // depth 1: a ray waits at one point at a time, its list is this task's
+            const uint32_t i = visits[j].ray;
+            counts[i] = merge_point_hits(hits + size_t(i) * max_hits, counts[i], max_hits, point_hits.data() + j * max_hits, c[j],
+                                         global_ids, scratch);
+          }
+        },
+        [&](size_t i) { return counts[i] == max_hits ? hits[i * max_hits + max_hits - 1].t : rays[i].tfar; },
+        [](size_t) { return false; });
   }
 
  private:
@@ -334,8 +343,9 @@ class Batched final : public OutOfCoreTracer {
       pt.meshes[k] = *found;
     }
     pt.moves = axis_moves(s.records, s.n_records);
-    pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
-               direct_instance(s.records, s.n_records), pt.moves.data()};
+    pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids,
+               s.records,        pt.meshes.data(),       direct_instance(s.records, s.n_records),
+               pt.moves.data()};
   }
 
   const PackageReader& r_;

@@ -35,7 +35,6 @@ bool ray_is_valid(const fmt::Ray& r) {
 
 namespace {
 
-
 template <int W, int B>
 struct Point {
   SceneView<W, B> view;
@@ -122,13 +121,15 @@ class InCoreTracer final : public PackageTracer {
         } else {
           auto it = segment_meshes.find(s.slots[k]);
           if (it == segment_meshes.end())
-            fail_invalid(label + ": mesh slot " + std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) + " is in no segment");
+            fail_invalid(label + ": mesh slot " + std::to_string(k) + ": mesh " + std::to_string(s.slots[k]) +
+                         " is in no segment");
           pt.meshes[k] = it->second;
         }
       }
       pt.moves = axis_moves(s.records, s.n_records);
-      pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids, s.records, pt.meshes.data(),
-               direct_instance(s.records, s.n_records), pt.moves.data()};
+      pt.view = {s.instance_nodes, s.instance_bvh[0].root, s.instance_ids,
+                 s.records,        pt.meshes.data(),       direct_instance(s.records, s.n_records),
+                 pt.moves.data()};
       pt.instance_count = s.n_records;
     }
     load_.total_seconds = seconds_since(t_start);
@@ -271,7 +272,7 @@ class InCoreTracer final : public PackageTracer {
         for (uint32_t bits = valid; bits; bits &= bits - 1) {
           const uint32_t i = uint32_t(__builtin_ctz(bits));
           if (cur[i] == v.seq[i].size() || v.seq[i][cur[i]].first != p) continue;  // not one of its points
-          if (v.seq[i][cur[i]++].second > double(ray[i].tfar)) continue;          // beyond its closest hit so far
+          if (v.seq[i][cur[i]++].second > double(ray[i].tfar)) continue;           // beyond its closest hit so far
           local[m] = ray[i];
           if (enter(p, local[m], o, st)) lane[m++] = i;
         }
@@ -433,8 +434,8 @@ class InCoreTracer final : public PackageTracer {
 
 void check_multi_hit_count(uint32_t max_hits) {
   if (max_hits < 1 || max_hits > kMaxMultiHit)
-    throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
-                                      std::to_string(kMaxMultiHit) + "]");
+    throw Error(ExitCode::kUsage,
+                "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " + std::to_string(kMaxMultiHit) + "]");
 }
 
 uint32_t merge_point_hits(fmt::Hit* list, uint32_t count, uint32_t max_hits, const fmt::Hit* add, uint32_t n_add,

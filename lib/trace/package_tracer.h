@@ -37,10 +37,8 @@ class PackageTracer {
   virtual PackageLoadStats load_stats() const = 0;
   virtual ~PackageTracer() = default;
   // hits[i].instance is the scene instance index, hits[i].prim the triangle in its mesh.
-  virtual PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n,
-                                    const PackageTraceOptions& options) const = 0;
-  virtual PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n,
-                                const PackageTraceOptions& options) const = 0;
+  virtual PackageTraceStats closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, const PackageTraceOptions& options) const = 0;
+  virtual PackageTraceStats any(const fmt::Ray* rays, uint8_t* occluded, size_t n, const PackageTraceOptions& options) const = 0;
   // The N closest hits per ray across batching points, in trace_multi's layout (trace.h) with scene
   // instance indices: points front to back, each entered only while its entry distance is within the
   // N-th hit found so far (Gribble 2016 §2.1 node culling at the top level too). Ties at exactly the

@@ -28,8 +28,7 @@ const char* order_name(TraversalOrder order) {
 }
 
 static void check_packet_size(uint32_t packet) {
-  if (!packet_size_ok(packet))
-    throw Error(ExitCode::kUsage, "packet size " + std::to_string(packet) + " is not 0, 4, 8 or 16");
+  if (!packet_size_ok(packet)) throw Error(ExitCode::kUsage, "packet size " + std::to_string(packet) + " is not 0, 4, 8 or 16");
 }
 
 namespace {
@@ -54,8 +53,8 @@ TraceStats closest_kernel(const SceneView<W, B>& scene, const fmt::Ray* rays, fm
 }
 
 template <int W, int B>
-TraceStats multi_kernel(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
-                        fmt::Hit* hits, uint32_t* counts, const TraceOptions& options, bool cull) {
+TraceStats multi_kernel(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits,
+                        uint32_t* counts, const TraceOptions& options, bool cull) {
   switch (usable(options.isa)) {
     case Isa::kAvx512: return avx512::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
     case Isa::kAvx2: return avx2::multi<W, B>(scene, rays, n, max_hits, cull, hits, counts, options.order);
@@ -94,13 +93,12 @@ TraceStats trace_any(const SceneView<W, B>& scene, const fmt::Ray* rays, uint8_t
 }
 
 template <int W, int B>
-TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
-                       fmt::Hit* hits, uint32_t* counts, const TraceOptions& options, MultiHitMethod method) {
+TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits,
+                       uint32_t* counts, const TraceOptions& options, MultiHitMethod method) {
   if (max_hits < 1 || max_hits > kMaxMultiHit)
-    throw Error(ExitCode::kUsage, "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " +
-                                      std::to_string(kMaxMultiHit) + "]");
-  const TraceStats stats = multi_kernel(scene, rays, n, max_hits, hits, counts, options,
-                                        method == MultiHitMethod::kNodeCulling);
+    throw Error(ExitCode::kUsage,
+                "multi-hit: N = " + std::to_string(max_hits) + " is outside [1, " + std::to_string(kMaxMultiHit) + "]");
+  const TraceStats stats = multi_kernel(scene, rays, n, max_hits, hits, counts, options, method == MultiHitMethod::kNodeCulling);
   name_merged_hits(scene, hits, n * size_t(max_hits));
   return stats;
 }
@@ -125,21 +123,19 @@ void intersect_node(Isa isa, const fmt::WideNode<W>& node, const fmt::Ray& ray, 
   scalar::node_test<W>(node, ray, out);
 }
 
-#define RTP_INSTANTIATE_PUBLIC_WB(W, B)                                                                    \
-  template TraceStats trace_closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,     \
-                                          const TraceOptions&);                                            \
-  template TraceStats trace_any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t,          \
-                                      const TraceOptions&);                                                \
-  template TraceStats trace_multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t,         \
-                                        fmt::Hit*, uint32_t*, const TraceOptions&, MultiHitMethod);
+#define RTP_INSTANTIATE_PUBLIC_WB(W, B)                                                                                     \
+  template TraceStats trace_closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t, const TraceOptions&); \
+  template TraceStats trace_any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, const TraceOptions&);      \
+  template TraceStats trace_multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t, fmt::Hit*, uint32_t*,    \
+                                        const TraceOptions&, MultiHitMethod);
 RTP_INSTANTIATE_PUBLIC_WB(4, 4)
 RTP_INSTANTIATE_PUBLIC_WB(8, 8)
 RTP_INSTANTIATE_PUBLIC_WB(16, 16)
 RTP_INSTANTIATE_PUBLIC_WB(8, 4)
 RTP_INSTANTIATE_PUBLIC_WB(16, 8)
 
-#define RTP_INSTANTIATE_PUBLIC_N(N)                                                                          \
-  template void intersect_block<N>(Isa, const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*);         \
+#define RTP_INSTANTIATE_PUBLIC_N(N)                                                                \
+  template void intersect_block<N>(Isa, const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*); \
   template void intersect_node<N>(Isa, const fmt::WideNode<N>&, const fmt::Ray&, NodeHits<N>*);
 RTP_INSTANTIATE_PUBLIC_N(4)
 RTP_INSTANTIATE_PUBLIC_N(8)

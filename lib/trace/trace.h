@@ -27,7 +27,7 @@ inline bool packet_size_ok(uint32_t p) { return p == 0 || p == 4 || p == 8 || p 
 
 struct TraceStats {
   uint64_t rays = 0;
-  uint64_t invalid_rays = 0;  // NaN/Inf, tnear > tfar, tnear = inf: returned as misses
+  uint64_t invalid_rays = 0;   // NaN/Inf, tnear > tfar, tnear = inf: returned as misses
   uint64_t overflow_rays = 0;  // tree deeper than the fixed traversal stacks allow (malformed BVH): misses
   // With TraceOptions::packet: packets traced and their rays (the others went alone: invalid, another
   // octant than the packet's first ray, too few), node tests by packets and the active rays summed over
@@ -64,8 +64,7 @@ inline constexpr uint32_t kMaxMultiHit = 64;
 // The order of hits is hit_order_less (layout/hit_order.h).
 enum class MultiHitMethod { kNodeCulling, kCollectAll };
 template <int W, int B>
-TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits,
-                       fmt::Hit* hits, uint32_t* counts, const TraceOptions& options,
-                       MultiHitMethod method = MultiHitMethod::kNodeCulling);
+TraceStats trace_multi(const SceneView<W, B>& scene, const fmt::Ray* rays, size_t n, uint32_t max_hits, fmt::Hit* hits,
+                       uint32_t* counts, const TraceOptions& options, MultiHitMethod method = MultiHitMethod::kNodeCulling);
 
 }  // namespace rtp

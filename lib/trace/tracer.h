@@ -19,16 +19,16 @@ inline constexpr uint32_t kDefaultSpeculation = 16;
 // The stats of one call. The in-core tracer fills the PackageTraceStats part; the out-of-core tracer
 // (out_of_core.h) fills its rounds, cache and peak-memory fields too.
 struct TracerStats : PackageTraceStats {
-  uint64_t rounds = 0;              // scheduling rounds (a set of batching points made resident)
-  uint64_t passes = 0;              // tracing passes over them (rays moving between points of a round)
-  ChunkCacheStats cache;            // chunks loaded, bytes read, hit rate, peak resident cache bytes
-  uint64_t budget_bytes = 0;        // the cache's budget
-  uint64_t fixed_bytes = 0;         // resident always: top level, descriptors, DAG pool
-  uint64_t peak_ray_bytes = 0;      // per-ray state and ray queues at their largest
-  uint64_t peak_resident_bytes = 0; // fixed + cache + rays, at the largest moment
-  double walk_seconds = 0;          // top-level walks and DAG culling (between rounds, in parallel)
-  double trace_seconds = 0;         // batching-point BVH traversal
-  double load_seconds = 0;          // reading, decompressing and checking chunks
+  uint64_t rounds = 0;               // scheduling rounds (a set of batching points made resident)
+  uint64_t passes = 0;               // tracing passes over them (rays moving between points of a round)
+  ChunkCacheStats cache;             // chunks loaded, bytes read, hit rate, peak resident cache bytes
+  uint64_t budget_bytes = 0;         // the cache's budget
+  uint64_t fixed_bytes = 0;          // resident always: top level, descriptors, DAG pool
+  uint64_t peak_ray_bytes = 0;       // per-ray state and ray queues at their largest
+  uint64_t peak_resident_bytes = 0;  // fixed + cache + rays, at the largest moment
+  double walk_seconds = 0;           // top-level walks and DAG culling (between rounds, in parallel)
+  double trace_seconds = 0;          // batching-point BVH traversal
+  double load_seconds = 0;           // reading, decompressing and checking chunks
   double total_seconds = 0;
 };
 
@@ -63,7 +63,7 @@ struct TracerConfig {
   // 0: every chunk loaded and checked up front (in core). Otherwise the out-of-core batched tracer's
   // cache budget in bytes (at least minimum_budget(reader), or open_tracer throws Error(kUsage)).
   uint64_t memory_budget = 0;
-  bool prefetch = false;                      // OutOfCoreTracer::set_prefetch (out_of_core.h)
+  bool prefetch = false;                       // OutOfCoreTracer::set_prefetch (out_of_core.h)
   uint32_t speculation = kDefaultSpeculation;  // OutOfCoreTracer::set_speculation
 };
 

@@ -21,8 +21,8 @@ struct Builder {
   uint32_t leaf_of(uint64_t m) {
     if (m == 0) return kNone;
     if (m == ~uint64_t(0)) return fmt::kDagFull;
-    const auto [index, fresh] =
-        leaf_index.find_or_insert(mix64(m), [&](uint32_t v) { return out.leaves[v] == m; }, uint32_t(out.leaves.size()));
+    const auto [index, fresh] = leaf_index.find_or_insert(
+        mix64(m), [&](uint32_t v) { return out.leaves[v] == m; }, uint32_t(out.leaves.size()));
     if (fresh) out.leaves.push_back(m);
     return index;
   }
@@ -103,8 +103,10 @@ void inline_single_use_leaves(LocalDag& d) {
     words[head_at] |= inl << 16;
   }
   const bool root_is_node = !d.node_offsets.empty() && d.root != kNone && d.root != fmt::kDagFull;
-  if (root_is_node) d.root = node_map[d.root];
-  else if (d.root != kNone && d.root != fmt::kDagFull) d.root = leaf_map[d.root];  // R = 4: the root is a leaf
+  if (root_is_node)
+    d.root = node_map[d.root];
+  else if (d.root != kNone && d.root != fmt::kDagFull)
+    d.root = leaf_map[d.root];  // R = 4: the root is a leaf
   d.words = std::move(words);
   d.node_offsets = std::move(offsets);
   d.leaves = std::move(leaves);
@@ -125,8 +127,8 @@ uint32_t DagPool::add(const LocalDag& dag) {
   std::vector<uint32_t> leaf_map(dag.leaves.size());
   for (size_t i = 0; i < dag.leaves.size(); ++i) {
     const uint64_t m = dag.leaves[i];
-    const auto [index, fresh] =
-        leaf_index_.find_or_insert(mix64(m), [&](uint32_t v) { return leaves_[v] == m; }, uint32_t(leaves_.size()));
+    const auto [index, fresh] = leaf_index_.find_or_insert(
+        mix64(m), [&](uint32_t v) { return leaves_[v] == m; }, uint32_t(leaves_.size()));
     if (fresh) leaves_.push_back(m);
     leaf_map[i] = index;
   }

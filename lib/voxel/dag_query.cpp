@@ -27,7 +27,11 @@ Grid decode_dag(const fmt::DagGrid& g, const DagView& v) {
     fill(0, 0, 0, nb, ~uint64_t(0));
     return out;
   }
-  struct Item { uint32_t ref; int level; uint32_t x, y, z; };  // block coordinates of the corner
+  struct Item {
+    uint32_t ref;
+    int level;
+    uint32_t x, y, z;
+  };  // block coordinates of the corner
   std::vector<Item> pending{{g.root, grid_levels(g.resolution), 0, 0, 0}};
   while (!pending.empty()) {
     const Item it = pending.back();

@@ -64,8 +64,7 @@ Effective effective(const fmt::InstanceRecord& rec, const Aabb& local_bounds) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) m(r, c) = md[4 * r + c] = rec.inverse_linear[3 * r + c];
     m(r, 3) = 0;
-    md[4 * r + 3] = -(md[4 * r] * rec.translation[0] + md[4 * r + 1] * rec.translation[1] +
-                      md[4 * r + 2] * rec.translation[2]);
+    md[4 * r + 3] = -(md[4 * r] * rec.translation[0] + md[4 * r + 1] * rec.translation[1] + md[4 * r + 2] * rec.translation[2]);
   }
   if (!invert_affine(m, e.minv)) return e;
   for (int r = 0; r < 3; ++r) e.minv[4 * r + 3] = rec.translation[r];
@@ -153,7 +152,8 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
     p.bounds = b;
     if (b.empty()) return;
     double ext = 0, mag = 0;
-    for (int k = 0; k < 3; ++k) ext = std::max(ext, b.hi[k] - b.lo[k]), mag = std::max({mag, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
+    for (int k = 0; k < 3; ++k)
+      ext = std::max(ext, b.hi[k] - b.lo[k]), mag = std::max({mag, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
     // Double rounding of the edge tests only: local vertices are exact floats.
     const double margin = 64 * std::numeric_limits<double>::epsilon() * (mag + ext);
     p.cell = std::max((ext + 4 * margin) / kLocalRes * (1 + 1e-9), std::numeric_limits<double>::min() * 1e6);
@@ -180,8 +180,8 @@ MeshProxies::MeshProxies(const Scene& scene, const Plan& plan) : proxies_(scene.
   });
 }
 
-PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
-                          const fmt::InstanceRecord* records, const BatchingPoint& bp, const VoxelOptions& o) {
+PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes, const fmt::InstanceRecord* records,
+                          const BatchingPoint& bp, const VoxelOptions& o) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point start = Clock::now();
   Clock::duration in_parallel{0};  // wall time of the span loop, replaced by its threads' summed time

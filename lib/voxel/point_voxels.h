@@ -30,13 +30,13 @@ class MeshProxies {
   MeshProxies(const Scene& scene, const Plan& plan);
   struct Level {
     uint32_t r = 0;
-    std::vector<uint32_t> cells;    // the occupied cells, x | y << 8 | z << 16, z, y, x ascending
+    std::vector<uint32_t> cells;  // the occupied cells, x | y << 8 | z << 16, z, y, x ascending
   };
   struct Proxy {
-    Aabb bounds;                    // the mesh's local bounds (computed once, not per instance)
-    Vec3d origin;                   // local grid corner
-    double cell = 0;                // finest local cell
-    std::vector<Level> levels;      // r = 1, 2, 4, ..., 32
+    Aabb bounds;                // the mesh's local bounds (computed once, not per instance)
+    Vec3d origin;               // local grid corner
+    double cell = 0;            // finest local cell
+    std::vector<Level> levels;  // r = 1, 2, 4, ..., 32
   };
   const Proxy& operator[](uint32_t mesh) const { return proxies_[mesh]; }
 
@@ -45,7 +45,7 @@ class MeshProxies {
 };
 
 struct PointProxy {
-  fmt::DagGrid grid{};   // root is the LocalDag's until the pool remaps it
+  fmt::DagGrid grid{};  // root is the LocalDag's until the pool remaps it
   LocalDag dag;
   uint64_t set_cells = 0;
   double work_seconds = 0;  // thread time spent (its triangle spans may run on several threads at once)
@@ -59,7 +59,7 @@ struct PointProxy {
 // few u of the larger of |org_local| and |v|; 16 leaves a factor of four. The first term is the
 // grid's `margin`, the factor of |org| its `ray_rel`. `records`: make_instance_records of
 // scene.instances, the records the tracer moves rays with (the points store them, SPEC §2.4).
-PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes,
-                          const fmt::InstanceRecord* records, const BatchingPoint& point, const VoxelOptions& options);
+PointProxy voxelize_point(const Scene& scene, const Plan& plan, const MeshProxies& meshes, const fmt::InstanceRecord* records,
+                          const BatchingPoint& point, const VoxelOptions& options);
 
 }  // namespace rtp::voxel

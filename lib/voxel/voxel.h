@@ -80,13 +80,14 @@ class Grid {
   }
   uint64_t& block_ref(uint32_t bx, uint32_t by, uint32_t bz) {
     uint32_t& b = brick_[brick_index(bx, by, bz)];
-    if (!b) [[unlikely]] allocate_brick(b);
+    if (!b) [[unlikely]]
+      allocate_brick(b);
     return store_[size_t(b - 1) * brick_blocks_ + local_index(bx, by, bz)];
   }
-  void allocate_brick(uint32_t& slot);  // a zeroed brick for an absent one
+  void allocate_brick(uint32_t& slot);          // a zeroed brick for an absent one
   uint32_t edge_ = 1, shift_ = 0, bricks_ = 1;  // blocks per brick edge (min(8, R/4)), log2, bricks per axis
   size_t brick_blocks_ = 1;
-  std::vector<uint32_t> brick_{0};               // per brick: 0 = absent, else 1 + its slot in store_
+  std::vector<uint32_t> brick_{0};  // per brick: 0 = absent, else 1 + its slot in store_
   std::vector<uint64_t> store_;
 };
 
@@ -103,11 +104,11 @@ void voxelize_triangle_thin(Grid& grid, const Vec3d& a, const Vec3d& b, const Ve
 
 // A sparse voxel DAG of one grid before it joins the pool: nodes deduplicated by (level, words).
 struct LocalDag {
-  std::vector<uint32_t> words;          // formats/dag.h node layout, children before parents
-  std::vector<uint32_t> node_offsets;   // start of each node in `words`, creation order
-  std::vector<uint8_t> node_levels;     // its level (>= 1)
-  std::vector<uint64_t> leaves;         // unique leaf masks
-  uint32_t root = fmt::kDagEmpty;       // at level log2(R / 4): a leaf index (R = 4), a word offset, or kDagEmpty/kDagFull
+  std::vector<uint32_t> words;         // formats/dag.h node layout, children before parents
+  std::vector<uint32_t> node_offsets;  // start of each node in `words`, creation order
+  std::vector<uint8_t> node_levels;    // its level (>= 1)
+  std::vector<uint64_t> leaves;        // unique leaf masks
+  uint32_t root = fmt::kDagEmpty;      // at level log2(R / 4): a leaf index (R = 4), a word offset, or kDagEmpty/kDagFull
   uint64_t bytes() const { return words.size() * 4 + leaves.size() * 8; }
 };
 
@@ -136,7 +137,7 @@ class DagPool {
 Grid decode_dag(const fmt::DagGrid& grid, const DagView& pool);
 
 // Scalar reference: every set cell of a dense grid tested on its own (slow; tests only).
-DagHit grid_first_entry_reference(const Grid& dense, double growth, const double org[3], const double dir[3],
-                                  double tnear, double tfar);
+DagHit grid_first_entry_reference(const Grid& dense, double growth, const double org[3], const double dir[3], double tnear,
+                                  double tfar);
 
 }  // namespace rtp::voxel

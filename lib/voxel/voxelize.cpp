@@ -12,8 +12,7 @@
 
 namespace rtp::voxel {
 
-Grid::Grid(const Vec3d& origin_, double cell_, uint32_t resolution_)
-    : origin(origin_), cell(cell_), resolution(resolution_) {
+Grid::Grid(const Vec3d& origin_, double cell_, uint32_t resolution_) : origin(origin_), cell(cell_), resolution(resolution_) {
   const uint32_t nb = resolution / 4;
   edge_ = std::min<uint32_t>(8, nb);
   shift_ = uint32_t(std::countr_zero(edge_));
@@ -231,9 +230,9 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   }
   // Projected edge functions per plane (a, b) = (x, y), (y, z), (z, x); the orientation follows the
   // normal's component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
-  double (&ex)[3][3] = t.ex;
-  double (&ey)[3][3] = t.ey;
-  double (&ed)[3][3] = t.ed;
+  double(&ex)[3][3] = t.ex;
+  double(&ey)[3][3] = t.ey;
+  double(&ed)[3][3] = t.ed;
   for (int p = 0; p < 3; ++p) {
     const int a = p, b = p == 2 ? 0 : p + 1, w = p == 0 ? 2 : p - 1;
     const double s = n[w] >= 0 ? 1.0 : -1.0;
@@ -273,8 +272,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
         for (int i = 0; i < nbx; ++i) row[i] |= uint64_t((m >> (4 * i)) & 0xFu) << shift;
       }
     for (int i = 0; i < blocks; ++i)
-      if (bits[i])
-        g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
+      if (bits[i]) g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
     return;
   }
   // Schwarz & Seidel 2010 §3.1, by columns of the dominant projection: the plane (a, b) whose third
@@ -295,8 +293,8 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   const double np_lo = -std::max(d1, d2), np_hi = -std::min(d1, d2), nw = n[w], inv_nw = 1 / nw;
   const double base_w = org[w] - margin;
   const double wmag = std::max(std::fabs(lo[w]), std::fabs(hi[w])) + dp + std::fabs(base_w);
-  const bool solve = l[w] - f[w] >= 2 && std::fabs(nw) > 1e-150 && std::isfinite(inv_nw) && std::isfinite(np_lo) &&
-                     std::isfinite(np_hi);
+  const bool solve =
+      l[w] - f[w] >= 2 && std::fabs(nw) > 1e-150 && std::isfinite(inv_nw) && std::isfinite(np_lo) && std::isfinite(np_hi);
   const bool one_block = (f[0] >> 2) == (l[0] >> 2) && (f[1] >> 2) == (l[1] >> 2) && (f[2] >> 2) == (l[2] >> 2);
   uint64_t bits = 0;  // one 4^3 block: gathered and stored once
   for (int ib = f[b]; ib <= l[b]; ++ib) {

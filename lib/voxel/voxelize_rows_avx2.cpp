@@ -20,8 +20,9 @@ void row_masks_avx2(const CellTests& t, uint8_t* masks) {
     const __m256d xi = _mm256_set_pd(double(x0 + 3), double(x0 + 2), double(x0 + 1), double(x0));
     const __m256d p0 = _mm256_sub_pd(_mm256_add_pd(_mm256_set1_pd(t.org[0]), _mm256_mul_pd(xi, _mm256_set1_pd(t.cell))),
                                      _mm256_set1_pd(t.margin));
-    const __m256d skip = _mm256_or_pd(_mm256_cmp_pd(p0, _mm256_set1_pd(t.box_hi[0]), _CMP_GT_OQ),
-                                      _mm256_cmp_pd(_mm256_add_pd(p0, _mm256_set1_pd(t.dp)), _mm256_set1_pd(t.box_lo[0]), _CMP_LT_OQ));
+    const __m256d skip =
+        _mm256_or_pd(_mm256_cmp_pd(p0, _mm256_set1_pd(t.box_hi[0]), _CMP_GT_OQ),
+                     _mm256_cmp_pd(_mm256_add_pd(p0, _mm256_set1_pd(t.dp)), _mm256_set1_pd(t.box_lo[0]), _CMP_LT_OQ));
     const int lanes = nx - 4 * c >= 4 ? 4 : nx - 4 * c;
     lane_ok[c] = ~_mm256_movemask_pd(skip) & ((1 << lanes) - 1);
     n0p0[c] = _mm256_mul_pd(_mm256_set1_pd(t.n[0]), p0);

@@ -41,7 +41,10 @@ inline void run_guarded(F&& f) {
     f();
   } catch (const rtp::Error&) {
   } catch (const std::exception& e) {
-    static const bool strict = [] { const char* s = std::getenv("RTP_FUZZ_STRICT"); return s && *s == '1'; }();
+    static const bool strict = [] {
+      const char* s = std::getenv("RTP_FUZZ_STRICT");
+      return s && *s == '1';
+    }();
     if (strict) {
       std::fprintf(stderr, "fuzz: exception other than rtp::Error (tools exit 5): %s\n", e.what());
       std::abort();

@@ -19,8 +19,7 @@ inline void reseal_package(std::vector<uint8_t>& f) {
   fmt::Header h;
   std::memcpy(&h, f.data(), sizeof h);
   const uint64_t n = f.size();
-  if (h.toc_entry_size >= sizeof(fmt::TocEntry) && h.toc_offset < n &&
-      h.toc_count <= (n - h.toc_offset) / h.toc_entry_size) {
+  if (h.toc_entry_size >= sizeof(fmt::TocEntry) && h.toc_offset < n && h.toc_count <= (n - h.toc_offset) / h.toc_entry_size) {
     for (uint64_t i = 0; i < h.toc_count; ++i) {
       uint8_t* entry = f.data() + h.toc_offset + i * h.toc_entry_size;
       fmt::TocEntry e;

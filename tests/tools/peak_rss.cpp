@@ -24,9 +24,8 @@ int main(int argc, char** argv) {
     ::_exit(127);
   }
   int status = 0;
-  struct rusage ru{};
-  while (::wait4(pid, &status, 0, &ru) < 0) {
-  }
+  struct rusage ru {};
+  while (::wait4(pid, &status, 0, &ru) < 0) {}
   if (std::FILE* f = std::fopen(argv[1], "w")) {
     std::fprintf(f, "%ld\n", ru.ru_maxrss);
     std::fclose(f);

@@ -38,8 +38,15 @@ inline constexpr PlaneOffsets<W> kPlaneOffsets{};
 template <class V, int W>
 RTP_KERNEL_INLINE SimdNodeRay<V> simd_node_ray(const detail::BoxRay& r) {
   static_assert(offsetof(fmt::WideNode<W>, hi) == 3 * W * sizeof(float));
-  SimdNodeRay<V> n{V::splat(r.org[0]), V::splat(r.org[1]), V::splat(r.org[2]), V::splat(r.rcp[0]),
-                   V::splat(r.rcp[1]), V::splat(r.rcp[2]), V::splat(r.tnear), {}, {}};
+  SimdNodeRay<V> n{V::splat(r.org[0]),
+                   V::splat(r.org[1]),
+                   V::splat(r.org[2]),
+                   V::splat(r.rcp[0]),
+                   V::splat(r.rcp[1]),
+                   V::splat(r.rcp[2]),
+                   V::splat(r.tnear),
+                   {},
+                   {}};
   const uint32_t* row = kPlaneOffsets<W>.off[r.octant & 7];
   for (int a = 0; a < 3; ++a) n.near_off[a] = row[a], n.far_off[a] = row[3 + a];
   return n;

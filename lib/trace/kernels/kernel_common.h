@@ -31,8 +31,7 @@ inline float to_float(double x) {
 
 // Woop, Benthin, Wald 2013 §3: an edge function that is exactly 0 in float is recomputed in double
 // (products of floats are exact there), then rounded back, so a shared edge gets one consistent sign.
-inline void edge_functions_double(float ax, float ay, float bx, float by, float cx, float cy, float* u, float* v,
-                                  float* w) {
+inline void edge_functions_double(float ax, float ay, float bx, float by, float cx, float cy, float* u, float* v, float* w) {
   const double cxby = double(cx) * double(by), cybx = double(cy) * double(bx);
   const double axcy = double(ax) * double(cy), aycx = double(ay) * double(cx);
   const double bxay = double(bx) * double(ay), byax = double(by) * double(ax);
@@ -57,17 +56,16 @@ inline constexpr float kDenBound = 1.0f / 1024.0f;
 // get the garbage t of a cancelled float dot product; and the plane crossing must lie on the triangle
 // within 1e-3 in barycentric terms (a ray whose sheared image falls within rounding of a sliver while
 // it crosses the plane far outside the triangle is a miss). p0, p1, p2, org, dir in (kx, ky, kz) order.
-inline bool triangle_double(float ax, float ay, float bx, float by, float cx, float cy, const float p0[3],
-                            const float p1[3], const float p2[3], const float org[3], const float dir[3], float tnear,
-                            float tfar, float* t_out, float* u_out, float* v_out) {
+inline bool triangle_double(float ax, float ay, float bx, float by, float cx, float cy, const float p0[3], const float p1[3],
+                            const float p2[3], const float org[3], const float dir[3], float tnear, float tfar, float* t_out,
+                            float* u_out, float* v_out) {
   const double u = double(cx) * by - double(cy) * bx, v = double(ax) * cy - double(ay) * cx,
                w = double(bx) * ay - double(by) * ax;
   if (!((u >= 0 && v >= 0 && w >= 0) || (u <= 0 && v <= 0 && w <= 0))) return false;
   const double det = (u + v) + w;
   if (!(det != 0)) return false;
   double e1[3], e2[3], rel[3];
-  for (int k = 0; k < 3; ++k)
-    e1[k] = double(p1[k]) - p0[k], e2[k] = double(p2[k]) - p0[k], rel[k] = double(p0[k]) - org[k];
+  for (int k = 0; k < 3; ++k) e1[k] = double(p1[k]) - p0[k], e2[k] = double(p2[k]) - p0[k], rel[k] = double(p0[k]) - org[k];
   const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
   const double den = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
   const double num = n[0] * rel[0] + n[1] * rel[1] + n[2] * rel[2];
@@ -101,7 +99,7 @@ enum class Walk { kDone, kStop, kOverflow };  // kStop: any-hit found
 // instead of each node waiting for its own cache misses.
 template <int W, class PrefetchLeaf>
 RTP_KERNEL_INLINE void prefetch_children(const fmt::WideNode<W>* nodes, const fmt::WideNode<W>& node, uint32_t mask,
-                              PrefetchLeaf&& prefetch_leaf) {
+                                         PrefetchLeaf&& prefetch_leaf) {
   for (uint32_t m = mask; m; m &= m - 1) {
     const uint32_t ref = node.child[__builtin_ctz(m)];
     if (fmt::ChildRef::is_leaf(ref)) {

@@ -30,19 +30,18 @@ struct SimdKernels {
   }
   // W = 8 walks push their ordered child hits with one permutation (push_ordered8).
   static constexpr bool kPushOrdered8 = true;
-  RTP_KERNEL_INLINE static void push_ordered8(void* dst, const uint32_t* child, const float* dist,
-                                              const uint8_t* order, uint32_t rest) {
+  RTP_KERNEL_INLINE static void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
+                                              uint32_t rest) {
     rtp::RTP_ISA_NS::push_ordered8(dst, child, dist, order, rest);
   }
-  RTP_KERNEL_INLINE static void push_ordered8_refs(uint32_t* dst, const uint32_t* child, const uint8_t* order,
-                                                   uint32_t rest) {
+  RTP_KERNEL_INLINE static void push_ordered8_refs(uint32_t* dst, const uint32_t* child, const uint8_t* order, uint32_t rest) {
     rtp::RTP_ISA_NS::push_ordered8_refs(dst, child, order, rest);
   }
   // W = 16 walks push with one compress where the 16-lane vector has one (AVX-512: Push16).
   static constexpr bool kPushOrdered16 = !std::is_void_v<typename Vec<16>::Push>;
   template <class P = typename Vec<16>::Push>
-  RTP_KERNEL_INLINE static void push_ordered16(void* dst, const uint32_t* child, const float* dist,
-                                               const uint8_t* order, uint32_t rest) {
+  RTP_KERNEL_INLINE static void push_ordered16(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
+                                               uint32_t rest) {
     P::pairs(dst, child, dist, order, rest);
   }
   template <int B>

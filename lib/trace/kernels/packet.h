@@ -155,8 +155,7 @@ inline uint32_t packet_frustum_test(const fmt::WideNode<W>& node, const PacketRa
 // operations in the same order as box_test_simd does for one ray and W children, so each lane's mask
 // bit and entry distance equal that ray's own.
 template <class VP, int W, int P>
-inline uint32_t packet_child_test(const fmt::WideNode<W>& node, int j, const PacketRays<P>& pr, const float* tfar,
-                                  float* dist) {
+inline uint32_t packet_child_test(const fmt::WideNode<W>& node, int j, const PacketRays<P>& pr, const float* tfar, float* dist) {
   const float* planes = &node.lo[0][0];
   float np[3], fp[3];
   for (int a = 0; a < 3; ++a) {
@@ -189,8 +188,8 @@ inline uint32_t packet_child_test(const fmt::WideNode<W>& node, int j, const Pac
 // leaf(ref, rays) tests a leaf for those rays; single(ref, lane) walks subtree `ref` for one ray.
 // Returns kOverflow when the stack would overflow (a tree deeper than kMaxDepth), else kDone.
 template <class K, int W, int P, class LeafFn, class SingleFn>
-inline Walk walk_packet(const fmt::WideNode<W>* nodes, uint32_t root, uint32_t mask, const PacketRays<P>& pr,
-                        const float* tfar, const uint32_t& live, LeafFn&& leaf, SingleFn&& single, PacketCounters& pc) {
+inline Walk walk_packet(const fmt::WideNode<W>* nodes, uint32_t root, uint32_t mask, const PacketRays<P>& pr, const float* tfar,
+                        const uint32_t& live, LeafFn&& leaf, SingleFn&& single, PacketCounters& pc) {
   using VW = typename K::template Vec<W>;
   using VP = typename K::template Vec<P>;
   struct Entry {
@@ -236,8 +235,7 @@ inline Walk walk_packet(const fmt::WideNode<W>* nodes, uint32_t root, uint32_t m
       uint32_t within = 0;
       for (int off = 0; off < P; off += VP::kLanes) {
         const VP t = VP::load(tfar + off);
-        within |= (VP::load(e.dist + off) <= vmax(t * VP::splat(detail::kFarPadUp), t * VP::splat(detail::kFarPadDown)))
-                      .bits()
+        within |= (VP::load(e.dist + off) <= vmax(t * VP::splat(detail::kFarPadUp), t * VP::splat(detail::kFarPadDown))).bits()
                   << off;
       }
       rays &= within;

@@ -59,7 +59,7 @@ RTP_KERNEL_INLINE void setup_box_ray(const float org[3], const float dir[3], flo
   const __m128 rcp_t = _mm_shuffle_ps(rcp, _mm_unpackhi_ps(rcp, _mm_set1_ps(tnear)), _MM_SHUFFLE(1, 0, 1, 0));
   float* b = reinterpret_cast<float*>(out);
   _mm_storeu_ps(b, _mm_setr_ps(org[0], org[1], org[2], 0.0f));  // org, then rcp[0] (written next)
-  _mm_storeu_ps(b + 3, rcp_t);                                   // rcp[0..2], tnear
+  _mm_storeu_ps(b + 3, rcp_t);                                  // rcp[0..2], tnear
   out->octant = static_cast<uint8_t>(_mm_movemask_ps(d) & 7);
 }
 
@@ -103,9 +103,8 @@ RTP_KERNEL_INLINE bool moves_no_ray(const fmt::InstanceRecord& inst) {
   return (_mm256_movemask_pd(t) & 7) == 7 && _mm256_movemask_ps(l) == 0xFF && inst.inverse_linear[8] == 1.0f;
 #else
   const float* m = inst.inverse_linear;
-  return inst.translation[0] == 0 && inst.translation[1] == 0 && inst.translation[2] == 0 && m[0] == 1.0f &&
-         m[4] == 1.0f && m[8] == 1.0f && m[1] == 0.0f && m[2] == 0.0f && m[3] == 0.0f && m[5] == 0.0f && m[6] == 0.0f &&
-         m[7] == 0.0f;
+  return inst.translation[0] == 0 && inst.translation[1] == 0 && inst.translation[2] == 0 && m[0] == 1.0f && m[4] == 1.0f &&
+         m[8] == 1.0f && m[1] == 0.0f && m[2] == 0.0f && m[3] == 0.0f && m[5] == 0.0f && m[6] == 0.0f && m[7] == 0.0f;
 #endif
 }
 
@@ -130,12 +129,12 @@ struct InstanceMove {
   RTP_KERNEL_INLINE bool apply(const float org[3], const float dir[3], float out_org[4], float out_dir[4]) const {
     const __m256d rel = _mm256_sub_pd(_mm256_cvtps_pd(_mm_setr_ps(org[0], org[1], org[2], 0.0f)), t);
     const __m256d d = _mm256_cvtps_pd(_mm_setr_ps(dir[0], dir[1], dir[2], 0.0f));
-    const __m256d o = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(rel, 0x00)),
-                                                  _mm256_mul_pd(c1, _mm256_permute4x64_pd(rel, 0x55))),
-                                    _mm256_mul_pd(c2, _mm256_permute4x64_pd(rel, 0xAA)));
-    const __m256d v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(d, 0x00)),
-                                                  _mm256_mul_pd(c1, _mm256_permute4x64_pd(d, 0x55))),
-                                    _mm256_mul_pd(c2, _mm256_permute4x64_pd(d, 0xAA)));
+    const __m256d o = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(rel, 0x00)), _mm256_mul_pd(c1, _mm256_permute4x64_pd(rel, 0x55))),
+        _mm256_mul_pd(c2, _mm256_permute4x64_pd(rel, 0xAA)));
+    const __m256d v = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(c0, _mm256_permute4x64_pd(d, 0x00)), _mm256_mul_pd(c1, _mm256_permute4x64_pd(d, 0x55))),
+        _mm256_mul_pd(c2, _mm256_permute4x64_pd(d, 0xAA)));
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     const __m256d limit = _mm256_set1_pd(double(FLT_MAX));
     const int in_range = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(o, abs_mask), limit, _CMP_LE_OQ)) &
@@ -170,8 +169,8 @@ RTP_KERNEL_INLINE Rays4 load_rays4(const fmt::Ray* rays) {
 // setup_box_ray for four rays given in SoA (origins o, directions d, tnear): one IEEE division per axis
 // and the sign bits for the octant, so each BoxRay gets setup_box_ray's bits. Also, when given, each
 // ray's octant into octants[k] and its origin and direction as rows (x, y, z, 0) into org[k], dir[k].
-RTP_KERNEL_INLINE void store_box_rays4(const __m128 o[3], const __m128 d[3], __m128 tnear, detail::BoxRay* box,
-                                       uint8_t* octants, float (*org)[4] = nullptr, float (*dir)[4] = nullptr) {
+RTP_KERNEL_INLINE void store_box_rays4(const __m128 o[3], const __m128 d[3], __m128 tnear, detail::BoxRay* box, uint8_t* octants,
+                                       float (*org)[4] = nullptr, float (*dir)[4] = nullptr) {
   const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
   __m128 rcp0 = _mm_div_ps(one, d[0]), rcp1 = _mm_div_ps(one, d[1]), rcp2 = _mm_div_ps(one, d[2]);
   const __m128i sign0 = _mm_srli_epi32(_mm_castps_si128(d[0]), 31);
@@ -181,7 +180,7 @@ RTP_KERNEL_INLINE void store_box_rays4(const __m128 o[3], const __m128 d[3], __m
   _mm_store_si128(reinterpret_cast<__m128i*>(octant), _mm_or_si128(_mm_or_si128(sign0, sign1), sign2));
   __m128 ox = o[0], oy = o[1], oz = o[2], ow = zero;
   __m128 vx = d[0], vy = d[1], vz = d[2], vw = zero;
-  _MM_TRANSPOSE4_PS(ox, oy, oz, ow);           // rows: ray 0..3's (x, y, z, 0)
+  _MM_TRANSPOSE4_PS(ox, oy, oz, ow);  // rows: ray 0..3's (x, y, z, 0)
   _MM_TRANSPOSE4_PS(vx, vy, vz, vw);
   _MM_TRANSPOSE4_PS(rcp0, rcp1, rcp2, tnear);  // rows: ray 0..3's (1/x, 1/y, 1/z, tnear)
   const __m128 orow[4] = {ox, oy, oz, ow}, vrow[4] = {vx, vy, vz, vw}, rrow[4] = {rcp0, rcp1, rcp2, tnear};
@@ -203,8 +202,7 @@ RTP_KERNEL_INLINE void store_box_rays4(const __m128 o[3], const __m128 d[3], __m
 // so each valid lane's BoxRay has setup_box_ray's bits (the boxes of invalid lanes are not to be read).
 // Returns bit k: ray k is valid with a usable direction; *invalid gets bit k for a ray that is not
 // valid; octants[k] = box[k].octant.
-RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid,
-                                            uint8_t octants[4]) {
+RTP_KERNEL_INLINE uint32_t setup_box_rays4(const fmt::Ray* rays, detail::BoxRay* box, uint32_t* invalid, uint8_t octants[4]) {
   const Rays4 r = load_rays4(rays);
   const __m128 zero = _mm_setzero_ps();
   auto finite = [&](__m128 x) { return _mm_cmpeq_ps(_mm_sub_ps(x, x), zero); };  // x - x == 0 exactly
@@ -255,8 +253,8 @@ struct InstanceMove4 {
       fd[r] = _mm256_cvtpd_ps(v);
     }
     const __m128 zero = _mm_setzero_ps();
-    const int usable = _mm_movemask_ps(_mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(fd[0], zero), _mm_cmpneq_ps(fd[1], zero)),
-                                                 _mm_cmpneq_ps(fd[2], zero)));
+    const int usable =
+        _mm_movemask_ps(_mm_or_ps(_mm_or_ps(_mm_cmpneq_ps(fd[0], zero), _mm_cmpneq_ps(fd[1], zero)), _mm_cmpneq_ps(fd[2], zero)));
     store_box_rays4(fo, fd, w.tnear, box, nullptr, org, dir);
     return uint32_t(_mm256_movemask_pd(in_range) & usable);
   }
@@ -295,9 +293,8 @@ RTP_KERNEL_INLINE bool transform_ray(const fmt::InstanceRecord& inst, const floa
 // reciprocals are the world's, permuted. kSkip where transform_ray returns false (out of float range).
 enum class AxisMoveResult { kMoved, kSkip, kGeneral };
 
-RTP_KERNEL_INLINE AxisMoveResult move_ray_by_axes(const fmt::InstanceRecord& inst, const AxisMove& mv,
-                                                  const fmt::Ray& ray, const detail::BoxRay& world, float org[4],
-                                                  float dir[4], detail::BoxRay* box) {
+RTP_KERNEL_INLINE AxisMoveResult move_ray_by_axes(const fmt::InstanceRecord& inst, const AxisMove& mv, const fmt::Ray& ray,
+                                                  const detail::BoxRay& world, float org[4], float dir[4], detail::BoxRay* box) {
 #if defined(__AVX2__)
   // Lanes 0..2; lane 3 reads tnear (fmt::Ray, BoxRay) or the record's next bytes and is masked out.
   const __m256d rel = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(ray.org)), _mm256_loadu_pd(inst.translation));
@@ -312,8 +309,7 @@ RTP_KERNEL_INLINE AxisMoveResult move_ray_by_axes(const fmt::InstanceRecord& ins
   __builtin_memcpy(&axes, mv.axis, 4);  // axis[0..2], neg (the index's low two bits are read)
   const __m128i idx = _mm_cvtepu8_epi32(_mm_cvtsi32_si128(axes));
   const __m128i bit = _mm_setr_epi32(1, 2, 4, 0);
-  const __m128 sign = _mm_castsi128_ps(_mm_slli_epi32(
-      _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(mv.neg), bit), bit), 31));
+  const __m128 sign = _mm_castsi128_ps(_mm_slli_epi32(_mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(mv.neg), bit), bit), 31));
   const __m128 o = _mm_xor_ps(_mm_permutevar_ps(_mm256_cvtpd_ps(rel), idx), sign);
   const __m128 v = _mm_xor_ps(_mm_permutevar_ps(d, idx), sign);
   const __m128 rcp = _mm_xor_ps(_mm_permutevar_ps(_mm_loadu_ps(world.rcp), idx), sign);

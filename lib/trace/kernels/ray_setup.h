@@ -24,9 +24,9 @@ inline constexpr float kFarPadDown = 1.0f - 4.0f * 1.1920929e-7f;  // 1 - 2^-21
 // A ray as the W-wide slab test reads it.
 struct BoxRay {
   float org[3];
-  float rcp[3];     // 1/dir, ±inf for a ±0 component (sign kept)
+  float rcp[3];  // 1/dir, ±inf for a ±0 component (sign kept)
   float tnear;
-  uint8_t octant;   // bit a = signbit(dir[a]): the near plane is hi, the far plane lo (WideNode::order row)
+  uint8_t octant;  // bit a = signbit(dir[a]): the near plane is hi, the far plane lo (WideNode::order row)
 };
 
 // A ray as the watertight triangle test reads it (Woop, Benthin, Wald 2013 §3): kz the dominant

@@ -86,8 +86,8 @@ inline float hmax(F8 a) { return hmax(F4{_mm_max_ps(_mm256_castps256_ps128(a.v),
 // order[i] has bit 7 set (pshufb semantics, matched by ordered_mask_scalar).
 template <int W>
 inline uint32_t ordered_mask_sse(uint32_t mask, const uint8_t* order) {
-  const __m128i spread = _mm_shuffle_epi8(_mm_cvtsi32_si128(static_cast<int>(mask)),
-                                          _mm_setr_epi8(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1));
+  const __m128i spread =
+      _mm_shuffle_epi8(_mm_cvtsi32_si128(static_cast<int>(mask)), _mm_setr_epi8(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1));
   const __m128i bit = _mm_setr_epi8(1, 2, 4, 8, 16, 32, 64, -128, 1, 2, 4, 8, 16, 32, 64, -128);
   const __m128i hit = _mm_cmpeq_epi8(_mm_and_si128(spread, bit), bit);
   __m128i ord;
@@ -125,18 +125,15 @@ inline constexpr PushOrder kPushOrder{};
 // (dst has room for 8). `dist` is the box test's per-lane entry distances.
 // The node lanes of the positions marked in `rest` (of the octant order `order`), far to near.
 RTP_KERNEL_INLINE __m256i pushed_lanes8(const uint8_t* order, uint32_t rest) {
-  const __m256i ord = _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))),
-                                       _mm256_set1_epi32(15));
-  const __m256i pick =
-      _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
+  const __m256i ord =
+      _mm256_and_si256(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(order))), _mm256_set1_epi32(15));
+  const __m256i pick = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kPushOrder.lanes[rest & 0xFF])));
   return _mm256_permutevar8x32_epi32(ord, pick);
 }
 
-RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order,
-                                     uint32_t rest) {
+RTP_KERNEL_INLINE void push_ordered8(void* dst, const uint32_t* child, const float* dist, const uint8_t* order, uint32_t rest) {
   const __m256i lanes = pushed_lanes8(order, rest);
-  const __m256i refs =
-      _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes);
+  const __m256i refs = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), lanes);
   const __m256i ds = _mm256_permutevar8x32_epi32(_mm256_castps_si256(_mm256_loadu_ps(dist)), lanes);
   const __m256i lo = _mm256_unpacklo_epi32(refs, ds), hi = _mm256_unpackhi_epi32(refs, ds);
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst), _mm256_permute2x128_si256(lo, hi, 0x20));

@@ -193,8 +193,8 @@ inline Walk trace_packet(const SceneView<W, B>& s, uint32_t mask, PacketLanes<P,
 // trace_batch (trace_ray.h) with P consecutive rays at a time: the valid rays of the first valid ray's
 // octant go as a packet when there are at least kPacketMinActive of them, the others alone.
 template <class K, bool kAny, int P, int W, int B>
-inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits,
-                                      uint8_t* occluded, size_t n) {
+inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, uint8_t* occluded,
+                                      size_t n) {
   using Sink = std::conditional_t<kAny, AnySink, ClosestSink>;
   constexpr TraversalOrder kOct = TraversalOrder::kOctantStack;
   TraceStats stats;
@@ -258,8 +258,8 @@ inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* 
       } else {
         const Closest& b = L.sink[i].best;
         const bool miss = ((L.overflow >> i) & 1u) || b.instance == fmt::Hit::kNone;
-        hits[base + i] = miss ? fmt::Hit{INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f}
-                              : fmt::Hit{b.t, b.instance, b.prim, b.u, b.v};
+        hits[base + i] =
+            miss ? fmt::Hit{INFINITY, fmt::Hit::kNone, fmt::Hit::kNone, 0.0f, 0.0f} : fmt::Hit{b.t, b.instance, b.prim, b.u, b.v};
       }
     }
   }
@@ -274,30 +274,27 @@ inline TraceStats trace_batch_packets(const SceneView<W, B>& s, const fmt::Ray* 
 
 // Defines this ISA's packet entry points (isa_entry.h) for P in {4, 8, 16} and the (W, B) pairs of
 // RTP_DEFINE_ISA_ENTRY_POINTS.
-#define RTP_DEFINE_PACKET_ENTRY_POINTS(K)                                                                    \
-  namespace rtp::RTP_ISA_NS {                                                                                \
-  template <int W, int B>                                                                                    \
-  TraceStats closest_packets(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, size_t n,      \
-                             uint32_t packet) {                                                              \
-    if (packet == 4) return trace_batch_packets<K, false, 4>(s, rays, hits, nullptr, n);                     \
-    if (packet == 8) return trace_batch_packets<K, false, 8>(s, rays, hits, nullptr, n);                     \
-    return trace_batch_packets<K, false, 16>(s, rays, hits, nullptr, n);                                     \
-  }                                                                                                          \
-  template <int W, int B>                                                                                    \
-  TraceStats any_packets(const SceneView<W, B>& s, const fmt::Ray* rays, uint8_t* occluded, size_t n,       \
-                         uint32_t packet) {                                                                  \
-    if (packet == 4) return trace_batch_packets<K, true, 4>(s, rays, nullptr, occluded, n);                  \
-    if (packet == 8) return trace_batch_packets<K, true, 8>(s, rays, nullptr, occluded, n);                  \
-    return trace_batch_packets<K, true, 16>(s, rays, nullptr, occluded, n);                                  \
-  }                                                                                                          \
-  RTP_INSTANTIATE_PACKETS(4, 4)                                                                              \
-  RTP_INSTANTIATE_PACKETS(8, 8)                                                                              \
-  RTP_INSTANTIATE_PACKETS(16, 16)                                                                            \
-  RTP_INSTANTIATE_PACKETS(8, 4)                                                                              \
-  RTP_INSTANTIATE_PACKETS(16, 8)                                                                             \
+#define RTP_DEFINE_PACKET_ENTRY_POINTS(K)                                                                                 \
+  namespace rtp::RTP_ISA_NS {                                                                                             \
+  template <int W, int B>                                                                                                 \
+  TraceStats closest_packets(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, size_t n, uint32_t packet) { \
+    if (packet == 4) return trace_batch_packets<K, false, 4>(s, rays, hits, nullptr, n);                                  \
+    if (packet == 8) return trace_batch_packets<K, false, 8>(s, rays, hits, nullptr, n);                                  \
+    return trace_batch_packets<K, false, 16>(s, rays, hits, nullptr, n);                                                  \
+  }                                                                                                                       \
+  template <int W, int B>                                                                                                 \
+  TraceStats any_packets(const SceneView<W, B>& s, const fmt::Ray* rays, uint8_t* occluded, size_t n, uint32_t packet) {  \
+    if (packet == 4) return trace_batch_packets<K, true, 4>(s, rays, nullptr, occluded, n);                               \
+    if (packet == 8) return trace_batch_packets<K, true, 8>(s, rays, nullptr, occluded, n);                               \
+    return trace_batch_packets<K, true, 16>(s, rays, nullptr, occluded, n);                                               \
+  }                                                                                                                       \
+  RTP_INSTANTIATE_PACKETS(4, 4)                                                                                           \
+  RTP_INSTANTIATE_PACKETS(8, 8)                                                                                           \
+  RTP_INSTANTIATE_PACKETS(16, 16)                                                                                         \
+  RTP_INSTANTIATE_PACKETS(8, 4)                                                                                           \
+  RTP_INSTANTIATE_PACKETS(16, 8)                                                                                          \
   }
 
-#define RTP_INSTANTIATE_PACKETS(W, B)                                                                         \
-  template TraceStats closest_packets<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,      \
-                                            uint32_t);                                                        \
+#define RTP_INSTANTIATE_PACKETS(W, B)                                                                              \
+  template TraceStats closest_packets<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t, uint32_t); \
   template TraceStats any_packets<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, uint32_t);

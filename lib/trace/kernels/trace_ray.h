@@ -27,7 +27,7 @@ struct Closest {
 
 template <TraversalOrder O, class K, int W, bool kFixedFar = false, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray, const float& tfar,
-                 LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
+                            LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   if constexpr (O == TraversalOrder::kOctantStack)
     return walk_octant_stack<K, W, kFixedFar>(nodes, root, ray, tfar, leaf, prefetch_leaf);
   else
@@ -75,7 +75,7 @@ RTP_KERNEL_INLINE Walk walk_mesh_inline(const SceneView<W, B>& s, uint32_t id, u
   const MeshBvhView<W, B>& mesh = s.meshes[s.instances[id].mesh];
   detail::TriRay tri;
   bool tri_ready = false;  // set up at the first leaf: many instance boxes are entered but no leaf
-  auto block_leaf = [&](uint32_t leaf_ref) __attribute__((always_inline)) -> Walk {
+  auto block_leaf = [&](uint32_t leaf_ref) __attribute__((always_inline))->Walk {
     if (!tri_ready) setup_tri_ray(org, dir, tnear, &tri), tri_ready = true;
     const uint32_t b0 = fmt::ChildRef::first_block(leaf_ref), nb = fmt::ChildRef::block_count(leaf_ref);
     for (uint32_t b = b0; b < b0 + nb; ++b) {
@@ -159,8 +159,8 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
     alignas(16) float org[4], dir[4];
     detail::BoxRay box;
     const uint8_t kind = only == s.direct ? uint8_t(AxisMove::kNone)
-                         : s.moves         ? s.moves[only].kind
-                                           : uint8_t(moves_no_ray(inst) ? AxisMove::kNone : AxisMove::kGeneral);
+                         : s.moves        ? s.moves[only].kind
+                                          : uint8_t(moves_no_ray(inst) ? AxisMove::kNone : AxisMove::kGeneral);
     if (kind != AxisMove::kGeneral) setup_box_ray(ray.org, ray.dir, ray.tnear, &world);
     if (kind != AxisMove::kNone) {
       AxisMoveResult r = AxisMoveResult::kGeneral;
@@ -186,8 +186,7 @@ inline Walk trace_one(const SceneView<W, B>& s, const fmt::Ray& ray, Sink& sink)
 }
 
 template <class K, TraversalOrder O, bool kAny, int W, int B>
-inline TraceStats trace_batch(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, uint8_t* occluded,
-                              size_t n) {
+inline TraceStats trace_batch(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, uint8_t* occluded, size_t n) {
   TraceStats stats;
   stats.rays = n;
   for (size_t i = 0; i < n; ++i) {
@@ -239,56 +238,53 @@ inline void node_test_impl(const fmt::WideNode<W>& node, const fmt::Ray& ray, No
 
 // Defines this ISA's entry points (isa_entry.h) with kernel set K and instantiates them for
 // (W, B) in {(4,4), (8,8), (16,16), (8,4), (16,8)}, blocks B in {4, 8, 16}, nodes W in {4, 8, 16}.
-#define RTP_DEFINE_ISA_ENTRY_POINTS(K)                                                                        \
-  namespace rtp::RTP_ISA_NS {                                                                                 \
-  template <int W, int B>                                                                                     \
-  TraceStats closest(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, size_t n,               \
-                     TraversalOrder order) {                                                                  \
-    return order == TraversalOrder::kOctantStack                                                              \
-               ? trace_batch<K, TraversalOrder::kOctantStack, false>(s, rays, hits, nullptr, n)               \
-               : trace_batch<K, TraversalOrder::kActiveList, false>(s, rays, hits, nullptr, n);               \
-  }                                                                                                           \
-  template <int W, int B>                                                                                     \
-  TraceStats any(const SceneView<W, B>& s, const fmt::Ray* rays, uint8_t* occluded, size_t n,                \
-                 TraversalOrder order) {                                                                      \
-    return order == TraversalOrder::kOctantStack                                                              \
-               ? trace_batch<K, TraversalOrder::kOctantStack, true>(s, rays, nullptr, occluded, n)            \
-               : trace_batch<K, TraversalOrder::kActiveList, true>(s, rays, nullptr, occluded, n);            \
-  }                                                                                                           \
-  template <int W, int B>                                                                                     \
-  TraceStats multi(const SceneView<W, B>& s, const fmt::Ray* rays, size_t n, uint32_t max_hits, bool cull,   \
-                   fmt::Hit* hits, uint32_t* counts, TraversalOrder order) {                                  \
-    constexpr TraversalOrder kOct = TraversalOrder::kOctantStack, kAct = TraversalOrder::kActiveList;         \
-    if (order == kOct)                                                                                        \
-      return cull ? multi_batch<K, kOct, true>(s, rays, n, max_hits, hits, counts)                            \
-                  : multi_batch<K, kOct, false>(s, rays, n, max_hits, hits, counts);                          \
-    return cull ? multi_batch<K, kAct, true>(s, rays, n, max_hits, hits, counts)                              \
-                : multi_batch<K, kAct, false>(s, rays, n, max_hits, hits, counts);                            \
-  }                                                                                                           \
-  template <int B>                                                                                            \
-  void block_test(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {                 \
-    block_test_impl<K, B>(block, ray, out);                                                                   \
-  }                                                                                                           \
-  template <int W>                                                                                            \
-  void node_test(const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out) {                      \
-    node_test_impl<K, W>(node, ray, out);                                                                     \
-  }                                                                                                           \
-  RTP_INSTANTIATE_WB(4, 4)                                                                                    \
-  RTP_INSTANTIATE_WB(8, 8)                                                                                    \
-  RTP_INSTANTIATE_WB(16, 16)                                                                                  \
-  RTP_INSTANTIATE_WB(8, 4)                                                                                    \
-  RTP_INSTANTIATE_WB(16, 8)                                                                                   \
-  RTP_INSTANTIATE_N(4)                                                                                        \
-  RTP_INSTANTIATE_N(8)                                                                                        \
-  RTP_INSTANTIATE_N(16)                                                                                       \
+#define RTP_DEFINE_ISA_ENTRY_POINTS(K)                                                                                     \
+  namespace rtp::RTP_ISA_NS {                                                                                              \
+  template <int W, int B>                                                                                                  \
+  TraceStats closest(const SceneView<W, B>& s, const fmt::Ray* rays, fmt::Hit* hits, size_t n, TraversalOrder order) {     \
+    return order == TraversalOrder::kOctantStack                                                                           \
+               ? trace_batch<K, TraversalOrder::kOctantStack, false>(s, rays, hits, nullptr, n)                            \
+               : trace_batch<K, TraversalOrder::kActiveList, false>(s, rays, hits, nullptr, n);                            \
+  }                                                                                                                        \
+  template <int W, int B>                                                                                                  \
+  TraceStats any(const SceneView<W, B>& s, const fmt::Ray* rays, uint8_t* occluded, size_t n, TraversalOrder order) {      \
+    return order == TraversalOrder::kOctantStack                                                                           \
+               ? trace_batch<K, TraversalOrder::kOctantStack, true>(s, rays, nullptr, occluded, n)                         \
+               : trace_batch<K, TraversalOrder::kActiveList, true>(s, rays, nullptr, occluded, n);                         \
+  }                                                                                                                        \
+  template <int W, int B>                                                                                                  \
+  TraceStats multi(const SceneView<W, B>& s, const fmt::Ray* rays, size_t n, uint32_t max_hits, bool cull, fmt::Hit* hits, \
+                   uint32_t* counts, TraversalOrder order) {                                                               \
+    constexpr TraversalOrder kOct = TraversalOrder::kOctantStack, kAct = TraversalOrder::kActiveList;                      \
+    if (order == kOct)                                                                                                     \
+      return cull ? multi_batch<K, kOct, true>(s, rays, n, max_hits, hits, counts)                                         \
+                  : multi_batch<K, kOct, false>(s, rays, n, max_hits, hits, counts);                                       \
+    return cull ? multi_batch<K, kAct, true>(s, rays, n, max_hits, hits, counts)                                           \
+                : multi_batch<K, kAct, false>(s, rays, n, max_hits, hits, counts);                                         \
+  }                                                                                                                        \
+  template <int B>                                                                                                         \
+  void block_test(const fmt::LeafBlock<B>& block, const fmt::Ray& ray, BlockHits<B>* out) {                                \
+    block_test_impl<K, B>(block, ray, out);                                                                                \
+  }                                                                                                                        \
+  template <int W>                                                                                                         \
+  void node_test(const fmt::WideNode<W>& node, const fmt::Ray& ray, NodeHits<W>* out) {                                    \
+    node_test_impl<K, W>(node, ray, out);                                                                                  \
+  }                                                                                                                        \
+  RTP_INSTANTIATE_WB(4, 4)                                                                                                 \
+  RTP_INSTANTIATE_WB(8, 8)                                                                                                 \
+  RTP_INSTANTIATE_WB(16, 16)                                                                                               \
+  RTP_INSTANTIATE_WB(8, 4)                                                                                                 \
+  RTP_INSTANTIATE_WB(16, 8)                                                                                                \
+  RTP_INSTANTIATE_N(4)                                                                                                     \
+  RTP_INSTANTIATE_N(8)                                                                                                     \
+  RTP_INSTANTIATE_N(16)                                                                                                    \
   }
 
-#define RTP_INSTANTIATE_WB(W, B)                                                                        \
-  template TraceStats closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t,        \
-                                    TraversalOrder);                                                    \
-  template TraceStats any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, TraversalOrder); \
-  template TraceStats multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t, bool, fmt::Hit*, \
-                                  uint32_t*, TraversalOrder);
-#define RTP_INSTANTIATE_N(N)                                                                 \
+#define RTP_INSTANTIATE_WB(W, B)                                                                                         \
+  template TraceStats closest<W, B>(const SceneView<W, B>&, const fmt::Ray*, fmt::Hit*, size_t, TraversalOrder);         \
+  template TraceStats any<W, B>(const SceneView<W, B>&, const fmt::Ray*, uint8_t*, size_t, TraversalOrder);              \
+  template TraceStats multi<W, B>(const SceneView<W, B>&, const fmt::Ray*, size_t, uint32_t, bool, fmt::Hit*, uint32_t*, \
+                                  TraversalOrder);
+#define RTP_INSTANTIATE_N(N)                                                             \
   template void block_test<N>(const fmt::LeafBlock<N>&, const fmt::Ray&, BlockHits<N>*); \
   template void node_test<N>(const fmt::WideNode<N>&, const fmt::Ray&, NodeHits<N>*);

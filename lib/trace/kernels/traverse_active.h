@@ -13,7 +13,7 @@ namespace rtp::RTP_ISA_NS {
 // at most W - 1 entries per level), so kCapacity below is never exceeded by a tree within kMaxDepth.
 template <class K, int W, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk_active_list(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
-                             const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
+                                        const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   constexpr int kSoft = 64;
   constexpr int kCapacity = kSoft + W + (W - 1) * detail::kMaxDepth + 1;
   uint32_t refs[kCapacity];

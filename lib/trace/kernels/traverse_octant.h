@@ -17,7 +17,7 @@ namespace rtp::RTP_ISA_NS {
 // (after Embree's any-hit traversal, which pushes no distances) and pops without a test.
 template <class K, int W, bool kFixedFar = false, class LeafFn, class PrefetchFn>
 RTP_KERNEL_INLINE Walk walk_octant_stack(const fmt::WideNode<W>* nodes, uint32_t root, const detail::BoxRay& ray,
-                              const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
+                                         const float& tfar, LeafFn&& leaf, PrefetchFn&& prefetch_leaf) {
   struct Pair {
     uint32_t ref;
     float dist;

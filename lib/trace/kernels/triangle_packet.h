@@ -46,17 +46,15 @@ template <int B>
 inline bool repeats_previous(const fmt::LeafBlock<B>& blk, int j) {
   if (blk.prim[j] != blk.prim[j - 1]) return false;
   for (int a = 0; a < 3; ++a)
-    if (blk.v0[a][j] != blk.v0[a][j - 1] || blk.v1[a][j] != blk.v1[a][j - 1] || blk.v2[a][j] != blk.v2[a][j - 1])
-      return false;
+    if (blk.v0[a][j] != blk.v0[a][j - 1] || blk.v1[a][j] != blk.v1[a][j - 1] || blk.v2[a][j] != blk.v2[a][j - 1]) return false;
   return true;
 }
 
 // Woop, Benthin, Wald 2013 §3 for triangle `j` of `blk` and the rays of `lanes` (live tfar per lane in
 // `tfar`): the mask of rays that hit it, with their t, u, v in t_out/u_out/v_out.
 template <class VP, int P, int B>
-RTP_KERNEL_INLINE uint32_t packet_triangle_test(const fmt::LeafBlock<B>& blk, int j, const PacketTriRays<P>& r,
-                                                const float* tfar, uint32_t lanes, float* t_out, float* u_out,
-                                                float* v_out) {
+RTP_KERNEL_INLINE uint32_t packet_triangle_test(const fmt::LeafBlock<B>& blk, int j, const PacketTriRays<P>& r, const float* tfar,
+                                                uint32_t lanes, float* t_out, float* u_out, float* v_out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const float q0[3] = {blk.v0[kx][j], blk.v0[ky][j], blk.v0[kz][j]};
   const float q1[3] = {blk.v1[kx][j], blk.v1[ky][j], blk.v1[kz][j]};
@@ -110,15 +108,15 @@ RTP_KERNEL_INLINE uint32_t packet_triangle_test(const fmt::LeafBlock<B>& blk, in
       for (uint32_t m = slow_all; m; m &= m - 1) {
         const int i = lowest_bit(m), k = off + i;
         const float org_k[3] = {r.ox[k], r.oy[k], r.oz[k]}, dir_k[3] = {r.dx[k], r.dy[k], r.dz[k]};
-        if (triangle_double(s6[0][i], s6[1][i], s6[2][i], s6[3][i], s6[4][i], s6[5][i], q0, q1, q2, org_k, dir_k,
-                            r.tnear[k], tfar[k], &st[i], &su[i], &sv[i]))
+        if (triangle_double(s6[0][i], s6[1][i], s6[2][i], s6[3][i], s6[4][i], s6[5][i], q0, q1, q2, org_k, dir_k, r.tnear[k],
+                            tfar[k], &st[i], &su[i], &sv[i]))
           slow_hit |= 1u << i;
       }
     }
     const VP t = num / den;
-    const uint32_t hit = (inside & (det != zero) & (t >= VP::load(r.tnear + off)) & (t <= VP::load(tfar + off)) &
-                          (vabs(t) <= VP::splat(FLT_MAX)))
-                             .bits();
+    const uint32_t hit =
+        (inside & (det != zero) & (t >= VP::load(r.tnear + off)) & (t <= VP::load(tfar + off)) & (vabs(t) <= VP::splat(FLT_MAX)))
+            .bits();
     const uint32_t fast_hit = hit & here & ~slow_all;
     if (!fast_hit && !slow_hit) continue;
     mask |= (fast_hit | slow_hit) << off;

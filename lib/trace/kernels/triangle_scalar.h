@@ -19,8 +19,7 @@ namespace rtp::RTP_ISA_NS {
 // two edges meet at the largest angle, so N does not cancel even for needles. Hit: t in [tnear, tfar].
 // u, v weight v1, v2 (formats/ray_file.h): u = V / det, v = W / det, det = U + V + W.
 template <int B, bool kAny>
-inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar,
-                                     BlockHits<B>* out) {
+inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar, BlockHits<B>* out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   uint32_t mask = 0;
   for (int i = 0; i < B; ++i) {
@@ -78,8 +77,7 @@ inline uint32_t triangle_test_scalar(const fmt::LeafBlock<B>& blk, const detail:
     } else {
       rel[0] = p2[0] - r.org_k[0], rel[1] = p2[1] - r.org_k[1], rel[2] = cz;
     }
-    const float nx = ea[1] * eb[2] - ea[2] * eb[1], ny = ea[2] * eb[0] - ea[0] * eb[2],
-                nz = ea[0] * eb[1] - ea[1] * eb[0];
+    const float nx = ea[1] * eb[2] - ea[2] * eb[1], ny = ea[2] * eb[0] - ea[0] * eb[2], nz = ea[0] * eb[1] - ea[1] * eb[0];
     const float den = (nx * r.dir_k[0] + ny * r.dir_k[1]) + nz * r.dir_k[2];
     const float num = (nx * rel[0] + ny * rel[1]) + nz * rel[2];
     const float dsum = (std::fabs(ea[1] * eb[2]) + std::fabs(ea[2] * eb[1])) * std::fabs(r.dir_k[0]) +

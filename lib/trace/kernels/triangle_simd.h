@@ -20,8 +20,7 @@ struct Sheared {
   uint32_t slow;
 };
 template <class V>
-RTP_KERNEL_INLINE Sheared<V> shear(V p0x, V p0y, V p0z, V p1x, V p1y, V p1z, V p2x, V p2y, V p2z, V ox, V oy, V oz,
-                                   V sx, V sy) {
+RTP_KERNEL_INLINE Sheared<V> shear(V p0x, V p0y, V p0z, V p1x, V p1y, V p1z, V p2x, V p2y, V p2z, V ox, V oy, V oz, V sx, V sy) {
   Sheared<V> e;
   e.az = p0z - oz, e.bz = p1z - oz, e.cz = p2z - oz;
   e.ax0 = p0x - ox, e.ay0 = p0y - oy;
@@ -50,7 +49,7 @@ RTP_KERNEL_INLINE Sheared<V> shear(V p0x, V p0y, V p0z, V p1x, V p1y, V p1z, V p
 // u = V / det, v = W / det.
 template <class V, int B, bool kAny>
 RTP_KERNEL_INLINE uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, const detail::TriRay& r, float tfar,
-                                   BlockHits<B>* out) {
+                                              BlockHits<B>* out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const V ox = V::splat(r.org_k[0]), oy = V::splat(r.org_k[1]), oz = V::splat(r.org_k[2]);
   const V sx = V::splat(r.sx), sy = V::splat(r.sy);
@@ -74,7 +73,7 @@ RTP_KERNEL_INLINE uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, cons
     const V l12 = (d12x * d12x + d12y * d12y) + d12z * d12z;
     const V l20 = (d20x * d20x + d20y * d20y) + d20z * d20z;
     const auto skip12 = (l12 >= l01) & (l12 >= l20);  // (d01, d20) at p0
-    const auto skip20 = l20 >= l01;                     // else (d12, d01) at p1, else (d20, d12) at p2
+    const auto skip20 = l20 >= l01;                   // else (d12, d01) at p1, else (d20, d12) at p2
     const V eax = vselect(skip12, d01x, vselect(skip20, d12x, d20x));
     const V eay = vselect(skip12, d01y, vselect(skip20, d12y, d20y));
     const V eaz = vselect(skip12, d01z, vselect(skip20, d12z, d20z));
@@ -104,17 +103,16 @@ RTP_KERNEL_INLINE uint32_t triangle_test_simd(const fmt::LeafBlock<B>& blk, cons
         const float q0[3] = {blk.v0[kx][off + i], blk.v0[ky][off + i], blk.v0[kz][off + i]};
         const float q1[3] = {blk.v1[kx][off + i], blk.v1[ky][off + i], blk.v1[kz][off + i]};
         const float q2[3] = {blk.v2[kx][off + i], blk.v2[ky][off + i], blk.v2[kz][off + i]};
-        if (triangle_double(s6[0][i], s6[1][i], s6[2][i], s6[3][i], s6[4][i], s6[5][i], q0, q1, q2, r.org_k, r.dir_k,
-                            r.tnear, tfar, &st[i], &su[i], &sv[i]))
+        if (triangle_double(s6[0][i], s6[1][i], s6[2][i], s6[3][i], s6[4][i], s6[5][i], q0, q1, q2, r.org_k, r.dir_k, r.tnear,
+                            tfar, &st[i], &su[i], &sv[i]))
           slow_hit |= 1u << i;
       }
       if constexpr (kAny)
         if (slow_hit) return slow_hit << off;
     }
     const V t = num / den;
-    const uint32_t hit = (inside & (det != zero) & (t >= V::splat(r.tnear)) & (t <= V::splat(tfar)) &
-                          (vabs(t) <= V::splat(FLT_MAX)))
-                             .bits();
+    const uint32_t hit =
+        (inside & (det != zero) & (t >= V::splat(r.tnear)) & (t <= V::splat(tfar)) & (vabs(t) <= V::splat(FLT_MAX))).bits();
     const uint32_t fast_hit = hit & ~slow_all;
     if (!fast_hit && !slow_hit) continue;
     if constexpr (kAny) return fast_hit << off;
