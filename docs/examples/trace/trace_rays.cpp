@@ -42,9 +42,9 @@ int main(int argc, char** argv) {
     std::printf("%zu rays, %zu hit\n", rays.size(), hit);
     if (options.packet)
       std::printf("%llu packets of %d; SIMD utilization %.1f%%\n", (unsigned long long)stats.packets, options.packet,
-                  stats.packet_node_tests ? 100.0 * double(stats.packet_active_lanes) /
-                                                (double(stats.packet_node_tests) * options.packet)
-                                          : 0.0);
+                  stats.packet_node_tests
+                      ? 100.0 * double(stats.packet_active_lanes) / (double(stats.packet_node_tests) * options.packet)
+                      : 0.0);
 
     std::ofstream out(argv[3], std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(hits.data()), std::streamsize(hits.size() * sizeof(rtpack::Hit)));
