@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "mesh/shapes.h"
 #include "test_bvh_check.h"
+#include "test_widths.h"
 
 namespace rtp {
 namespace {
@@ -18,15 +19,7 @@ namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt
 
 using bvhtest::check_mesh_bvh;
 
-// Calls f.template operator()<W, B>() for every instantiated (W, B).
-template <class F>
-void for_each_config(F&& f) {
-  f.template operator()<4, 4>();
-  f.template operator()<8, 8>();
-  f.template operator()<16, 16>();
-  f.template operator()<8, 4>();
-  f.template operator()<16, 8>();
-}
+using test::for_each_config;
 
 constexpr BuildMethod kMethods[] = {BuildMethod::kCollapse, BuildMethod::kSplit};
 

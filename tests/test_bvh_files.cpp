@@ -9,6 +9,7 @@
 #include "gltf_builder.h"
 #include "scene/import.h"
 #include "test_bvh_check.h"
+#include "test_widths.h"
 
 namespace rtp {
 namespace {
@@ -17,14 +18,7 @@ namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt
 namespace fs = std::filesystem;
 const fs::path kSamples = fs::path(RTP_SOURCE_DIR) / "samples";
 
-template <class F>
-void for_each_config(F&& f) {
-  f.template operator()<4, 4>();
-  f.template operator()<8, 8>();
-  f.template operator()<16, 16>();
-  f.template operator()<8, 4>();
-  f.template operator()<16, 8>();
-}
+using test::for_each_config;
 
 void check_file(const fs::path& path) {
   ASSERT_TRUE(fs::exists(path)) << path;

@@ -17,6 +17,7 @@
 #include "scene/import.h"
 #include "test_bvh_check.h"
 #include "trace/trace.h"
+#include "test_widths.h"
 
 namespace rtp {
 namespace {
@@ -134,14 +135,7 @@ size_t check_scene(const Scene& scene, const InCoreScene<W, B>& ics, const Build
   return in_bvh;
 }
 
-template <class F>
-void for_each_config(F&& f) {
-  f.template operator()<4, 4>();
-  f.template operator()<8, 8>();
-  f.template operator()<16, 16>();
-  f.template operator()<8, 4>();
-  f.template operator()<16, 8>();
-}
+using test::for_each_config;
 
 TEST(BvhScene, GalleryAllConfigs) {
   const Scene scene = import_gltf((kSamples / "generated/gallery.glb").string());

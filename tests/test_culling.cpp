@@ -28,6 +28,7 @@
 
 #include "cluster/cluster.h"
 #include "gltf_builder.h"
+#include "test_rng.h"
 #include "mesh/prepare.h"
 #include "oracle/rays.h"
 #include "package/writer.h"
@@ -48,19 +49,7 @@ bool sanitized() { return std::getenv("RTP_SANITIZED") != nullptr; }
 // Ray counts: full in Release, an eighth under ASan/UBSan.
 size_t scaled(size_t n) { return sanitized() ? std::max<size_t>(n / 8, 16) : n; }
 
-struct Rng {
-  uint64_t s;
-  explicit Rng(uint64_t seed) : s(seed * 0x9E3779B97F4A7C15ull + 777) {}
-  uint64_t next() {
-    uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return double(next() >> 11) * 0x1.0p-53; }
-  double range(double a, double b) { return a + (b - a) * uniform(); }
-  size_t below(size_t n) { return size_t(next() % n); }
-};
+using Rng = SplitMix64<777, double>;
 
 // A converted scene, traced in core.
 struct Converted {

@@ -27,25 +27,6 @@ using fmt::SectionType;
 
 class Limits : public Hostile {};
 
-// Rewrites the stored bytes (possibly compressed) of chunk `index` and its TOC entry, re-sealing the
-// chunk CRC, the TOC CRC and the header CRC.
-void patch_stored(const std::string& path, size_t index, const std::function<void(uint8_t*, fmt::TocEntry&)>& edit) {
-  std::string f = slurp(path);
-  fmt::Header h;
-  std::memcpy(&h, f.data(), sizeof h);
-  char* entry = f.data() + h.toc_offset + index * h.toc_entry_size;
-  fmt::TocEntry e;
-  std::memcpy(&e, entry, sizeof e);
-  uint8_t* chunk = reinterpret_cast<uint8_t*>(f.data() + e.offset);
-  edit(chunk, e);
-  e.crc32c = crc32c(chunk, e.stored_size);
-  std::memcpy(entry, &e, sizeof e);
-  h.toc_crc32c = crc32c(f.data() + h.toc_offset, h.toc_count * h.toc_entry_size);
-  h.header_crc32c = crc32c(&h, offsetof(fmt::Header, header_crc32c));
-  std::memcpy(f.data(), &h, sizeof h);
-  std::ofstream(path, std::ios::binary | std::ios::trunc).write(f.data(), std::streamsize(f.size()));
-}
-
 // The zstd frame header's content-size field of `frame` (RFC 8878 §3.1.1.1): its offset and width.
 std::pair<size_t, size_t> frame_content_size_field(const uint8_t* frame) {
   const uint8_t fhd = frame[4];

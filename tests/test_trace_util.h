@@ -15,6 +15,7 @@
 #include "scene/scene.h"
 #include "layout/scene_view.h"
 #include "trace/trace.h"
+#include "test_rng.h"
 
 namespace rtp::trace_test {
 
@@ -28,19 +29,7 @@ inline std::vector<Isa> simd_isas() {
   return out;
 }
 
-struct Rng {
-  uint64_t s;
-  explicit Rng(uint64_t seed) : s(seed * 0x9E3779B97F4A7C15ull + 1) {}
-  uint64_t next() {
-    uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
-  float range(float lo, float hi) { return float(lo + (hi - lo) * uniform()); }
-  uint32_t below(uint32_t n) { return uint32_t(next() % n); }
-};
+using Rng = test::SplitMix64<1, float>;
 
 struct Tri {
   std::array<std::array<float, 3>, 3> v;  // v[corner][axis]

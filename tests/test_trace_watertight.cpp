@@ -12,6 +12,7 @@
 #include "mesh/shapes.h"
 #include "test_trace_paths.h"
 #include "test_trace_util.h"
+#include "test_widths.h"
 
 namespace rtp {
 namespace {
@@ -19,13 +20,10 @@ namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt
 
 using namespace trace_test;
 
-template <int W_, int B_>
-struct WB {
-  static constexpr int W = W_, B = B_;
-};
+using test::WB;
 template <class T>
 class TraceWatertight : public ::testing::Test {};
-using AllWidths = ::testing::Types<WB<4, 4>, WB<8, 8>, WB<16, 16>, WB<8, 4>, WB<16, 8>>;
+using test::AllWidths;
 TYPED_TEST_SUITE(TraceWatertight, AllWidths);
 
 std::array<float, 3> to_float(const std::array<double, 3>& p) { return {float(p[0]), float(p[1]), float(p[2])}; }

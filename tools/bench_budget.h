@@ -8,27 +8,23 @@
 #include <string>
 #include <vector>
 
-#include "oracle/rays.h"
-#include "trace/trace.h"
+#include "bench_mode.h"
 
 namespace rtp::bench {
 
-struct BudgetBenchConfig {
-  std::string scene_path, package;
-  std::vector<std::string> allow_paths;
+struct BudgetBenchConfig : ModeConfig {
+  BudgetBenchConfig() {
+    kinds = {RayKind::kBounce};
+    rays = size_t(1) << 18;
+  }
+  std::string package;
   std::vector<double> budgets = {100, 50, 25, 10, 5};  // percent of the package's on-demand bytes
   std::string budgets_text;                            // --budgets as given (parsed by run_budget_bench)
-  std::vector<RayKind> kinds = {RayKind::kBounce};
-  size_t rays = 1 << 18;
-  uint64_t seed = 1;
-  int threads = 0;  // 0: all
   bool direct_io = false;
   bool prefetch = false;         // --prefetch: read ahead on an I/O thread while a round traces
   std::string culling = "both";  // --culling on|off|both
   std::string save_rays;         // --save-rays PREFIX: PREFIX-KIND.rays (formats/ray_file.h) for rtpack-trace
-  bool json = false;
-  int reps = 3;  // --reps: each out-of-core run and the in-core reference, best of this many (interleaved)
-  Isa isa = Isa::kScalar;
+  // reps: each out-of-core run and the in-core reference, best of this many (interleaved)
 };
 
 // Registers --out-of-core PKG (returned, for the caller's excludes), --budgets, --direct-io, --prefetch,

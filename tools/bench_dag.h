@@ -8,8 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "oracle/rays.h"
-#include "trace/trace.h"
+#include "bench_mode.h"
 
 namespace CLI {
 class App;
@@ -18,20 +17,16 @@ class Option;
 
 namespace rtp::bench {
 
-struct DagBenchConfig {
-  std::vector<std::string> scenes;                                 // the first comes from rtpack-bench's SCENE positional
-  std::vector<std::string> allow_paths;                            // --allow-path: further directories for external buffers
-  std::vector<std::string> parts{"proxy", "sweep", "convert"};     // --parts
-  std::vector<uint32_t> resolutions{32, 64, 128, 256, 512};        // --resolutions (sweep)
-  uint32_t proxy_resolution = 128;                                 // --proxy-resolution (proxy part)
-  size_t rays = size_t(1) << 17;                                   // per kind (rtpack-bench --rays)
-  std::vector<RayKind> kinds{RayKind::kBounce, RayKind::kRandom};  // rtpack-bench --kinds
-  uint64_t seed = 1;
-  Isa isa = Isa::kScalar;
+struct DagBenchConfig : ModeConfig {
+  DagBenchConfig() {
+    kinds = {RayKind::kBounce, RayKind::kRandom};
+    rays = size_t(1) << 17;
+  }
+  std::vector<std::string> scenes;                              // scene_path first, then the positional list of further scenes
+  std::vector<std::string> parts{"proxy", "sweep", "convert"};  // --parts
+  std::vector<uint32_t> resolutions{32, 64, 128, 256, 512};     // --resolutions (sweep)
+  uint32_t proxy_resolution = 128;                              // --proxy-resolution (proxy part)
   TraversalOrder order = TraversalOrder::kOctantStack;
-  int threads = 0;  // 0 = all hardware threads (tracing and converting)
-  int reps = 3;     // best of reps after one warm-up
-  bool json = false;
 };
 
 // Adds --dag, its own options (--parts, --resolutions, --proxy-resolution) and the positional list of

@@ -8,23 +8,14 @@
 #include <string>
 #include <vector>
 
-#include "oracle/rays.h"
-#include "trace/trace.h"
+#include "bench_mode.h"
 
 namespace rtp::bench {
 
-struct MultiHitBenchConfig {
-  std::string scene_path;
-  std::vector<std::string> allow_paths;
+struct MultiHitBenchConfig : ModeConfig {
+  MultiHitBenchConfig() { kinds = {RayKind::kRandom, RayKind::kBounce}; }
   std::string ks_text;  // --multi-hit as given
   std::vector<uint32_t> ks;
-  std::vector<RayKind> kinds = {RayKind::kRandom, RayKind::kBounce};
-  size_t rays = 1 << 16;
-  uint64_t seed = 1;
-  int threads = 0;  // 0: all
-  int reps = 3;
-  bool json = false;
-  Isa isa = Isa::kScalar;
 };
 
 // Registers --multi-hit LIST (returned, for the caller's excludes).

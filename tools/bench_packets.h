@@ -10,23 +10,14 @@
 #include <string>
 #include <vector>
 
-#include "oracle/rays.h"
-#include "trace/trace.h"
+#include "bench_mode.h"
 
 namespace rtp::bench {
 
-struct PacketBenchConfig {
-  std::string scene_path;
-  std::vector<std::string> allow_paths;
+struct PacketBenchConfig : ModeConfig {
+  PacketBenchConfig() { kinds = {RayKind::kPrimary}; }
   std::string sizes_text;  // --packets as given
   std::vector<uint32_t> sizes;
-  std::vector<RayKind> kinds = {RayKind::kPrimary};
-  size_t rays = 1 << 16;
-  uint64_t seed = 1;
-  int threads = 0;  // 0: all
-  int reps = 3;
-  bool json = false;
-  Isa isa = Isa::kScalar;
 };
 
 // Registers --packets LIST (returned, for the caller's excludes).

@@ -552,61 +552,46 @@ int main(int argc, char** argv) {
     return usage("--isa must be best, scalar, avx2 or avx512, not '" + isa + "'");
   if (int(cfg.isa) > int(best)) return usage(std::string("this CPU does not support ") + isa + " (best: " + isa_name(best) + ")");
   g_progress = isatty(2) != 0;
-  try {
-    if (convert) {
-      conv.scene_path = cfg.scene_path;
-      conv.allow_paths = cfg.allow_paths;
-      conv.threads = threads == "all" ? 0 : cfg.threads[0];
-      conv.reps = cfg.reps;
-      conv.json = cfg.json;
-      return bench::run_convert_bench(conv);
-    }
-    if (app.count("--out-of-core")) {
-      budget.scene_path = cfg.scene_path;
-      budget.allow_paths = cfg.allow_paths;
-      budget.threads = threads == "all" ? 0 : cfg.threads[0];
-      budget.json = cfg.json, budget.seed = cfg.seed, budget.isa = cfg.isa, budget.reps = cfg.reps;
-      if (app.count("--rays")) budget.rays = cfg.rays;
-      if (app.count("--kinds")) budget.kinds = cfg.kinds;
-      return bench::run_budget_bench(budget);
-    }
-    if (app.count("--multi-hit")) {
-      multi.scene_path = cfg.scene_path;
-      multi.allow_paths = cfg.allow_paths;
-      multi.threads = threads == "all" ? 0 : cfg.threads[0];
-      multi.reps = cfg.reps, multi.json = cfg.json, multi.seed = cfg.seed, multi.isa = cfg.isa;
-      if (app.count("--rays")) multi.rays = cfg.rays;
-      if (app.count("--kinds")) multi.kinds = cfg.kinds;
-      return bench::run_multi_hit_bench(multi);
-    }
-    if (app.count("--packets")) {
-      packets.scene_path = cfg.scene_path;
-      packets.allow_paths = cfg.allow_paths;
-      packets.threads = threads == "all" ? 0 : cfg.threads[0];
-      packets.reps = cfg.reps, packets.json = cfg.json, packets.seed = cfg.seed, packets.isa = cfg.isa;
-      if (app.count("--rays")) packets.rays = cfg.rays;
-      if (app.count("--kinds")) packets.kinds = cfg.kinds;
-      return bench::run_packet_bench(packets);
-    }
-    if (app.count("--dag")) {
-      dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);
-      dag.allow_paths = cfg.allow_paths;
-      dag.threads = threads == "all" ? 0 : cfg.threads[0];
-      dag.reps = cfg.reps, dag.json = cfg.json, dag.seed = cfg.seed, dag.isa = cfg.isa, dag.order = cfg.orders[0];
-      if (app.count("--rays")) dag.rays = cfg.rays;
-      if (app.count("--kinds")) dag.kinds = cfg.kinds;
-      return bench::run_dag_bench(dag);
-    }
-    return run(cfg);
-  } catch (const Error& e) {
-    progress_done();
-    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, e.code(), e.what());
-  } catch (const std::bad_alloc&) {
-    progress_done();
-    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal, "out of memory");
-  } catch (const std::exception& e) {
-    progress_done();
-    return rtp::tools::report_error("rtpack-bench", cfg.json, cfg.scene_path, rtp::ExitCode::kInternal,
-                                    std::string("internal error: ") + e.what());
-  }
+  return rtp::tools::run_reporting_errors(
+      "rtpack-bench", cfg.json, cfg.scene_path,
+      [&]() -> int {
+        if (convert) {
+          conv.scene_path = cfg.scene_path;
+          conv.allow_paths = cfg.allow_paths;
+          conv.threads = threads == "all" ? 0 : cfg.threads[0];
+          conv.reps = cfg.reps;
+          conv.json = cfg.json;
+          return bench::run_convert_bench(conv);
+        }
+        // The main command line's settings every mode shares (--rays and --kinds only when given:
+        // each mode has its own defaults).
+        const auto shared = [&](bench::ModeConfig& m) {
+          m.scene_path = cfg.scene_path;
+          m.allow_paths = cfg.allow_paths;
+          m.threads = threads == "all" ? 0 : cfg.threads[0];
+          m.reps = cfg.reps, m.json = cfg.json, m.seed = cfg.seed, m.isa = cfg.isa;
+          if (app.count("--rays")) m.rays = cfg.rays;
+          if (app.count("--kinds")) m.kinds = cfg.kinds;
+        };
+        if (app.count("--out-of-core")) {
+          shared(budget);
+          return bench::run_budget_bench(budget);
+        }
+        if (app.count("--multi-hit")) {
+          shared(multi);
+          return bench::run_multi_hit_bench(multi);
+        }
+        if (app.count("--packets")) {
+          shared(packets);
+          return bench::run_packet_bench(packets);
+        }
+        if (app.count("--dag")) {
+          shared(dag);
+          dag.scenes.insert(dag.scenes.begin(), cfg.scene_path);
+          dag.order = cfg.orders[0];
+          return bench::run_dag_bench(dag);
+        }
+        return run(cfg);
+      },
+      progress_done);
 }

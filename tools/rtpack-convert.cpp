@@ -124,168 +124,165 @@ int main(int argc, char** argv) {
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
   rtp::Progress progress(!quiet && !json);
-  try {
-    if (!dry_run) {  // before any work
-      rtp::check_not_same_file(input, output);
-      rtp::check_output_path(output);
-    }
-    rtp::ConvertSettings cs;
-    cs.input = input;
-    cs.output = output;
-    cs.scene = scene_index;
-    cs.allow_paths = allow_paths;
-    cs.attributes = attributes;
-    cs.weld = weld;
-    cs.subdivide = subdivide;
-    cs.subdivide_to = subdivide_to;
-    cs.width = width;
-    cs.leaf_width = leaf_width;
-    cs.bvh_build = build;
-    cs.chunk_target = chunk_target;
-    cs.chunk_by = chunk_by;
-    cs.zstd_level = zstd_level;
-    cs.zstd_raw_literals = !huffman_literals;
-    cs.zstd_leaf_min_match = leaf_min_match;
-    cs.dag = !no_dag;
-    cs.dag_resolution = dag_resolution;
-    cs.dry_run = dry_run;
-    cs.topology = topology;
-    rtp::ConvertHooks hooks;
-    hooks.stage = [&](const std::string& name, bool counts) { progress.stage(name, counts); };
-    hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
-    hooks.prepared = [&](const rtp::Scene& sc, const rtp::PrepareReport&) {  // warnings before the long stages
-      progress.finish();
-      if (!quiet)
-        for (const auto& w : sc.warnings) std::cerr << "warning: " << input << ": " << w << "\n";
-    };
-    const rtp::ConvertOutcome done = rtp::convert_scene(cs, hooks);
-    progress.finish();
-    const rtp::Scene& scene = done.scene;
-    if (dry_run) {
-      if (json) {
-        nlohmann::json j = rtp::scene_summary_json(scene);
-        j["preparation"] = rtp::prepare_report_json(done.prepare);
+  return rtp::tools::run_reporting_errors(
+      "rtpack-convert", json, input,
+      [&]() -> int {
+        if (!dry_run) {  // before any work
+          rtp::check_not_same_file(input, output);
+          rtp::check_output_path(output);
+        }
+        rtp::ConvertSettings cs;
+        cs.input = input;
+        cs.output = output;
+        cs.scene = scene_index;
+        cs.allow_paths = allow_paths;
+        cs.attributes = attributes;
+        cs.weld = weld;
+        cs.subdivide = subdivide;
+        cs.subdivide_to = subdivide_to;
+        cs.width = width;
+        cs.leaf_width = leaf_width;
+        cs.bvh_build = build;
+        cs.chunk_target = chunk_target;
+        cs.chunk_by = chunk_by;
+        cs.zstd_level = zstd_level;
+        cs.zstd_raw_literals = !huffman_literals;
+        cs.zstd_leaf_min_match = leaf_min_match;
+        cs.dag = !no_dag;
+        cs.dag_resolution = dag_resolution;
+        cs.dry_run = dry_run;
+        cs.topology = topology;
+        rtp::ConvertHooks hooks;
+        hooks.stage = [&](const std::string& name, bool counts) { progress.stage(name, counts); };
+        hooks.progress = [&](uint64_t d, uint64_t t) { progress.update(d, t); };
+        hooks.prepared = [&](const rtp::Scene& sc, const rtp::PrepareReport&) {  // warnings before the long stages
+          progress.finish();
+          if (!quiet)
+            for (const auto& w : sc.warnings) std::cerr << "warning: " << input << ": " << w << "\n";
+        };
+        const rtp::ConvertOutcome done = rtp::convert_scene(cs, hooks);
+        progress.finish();
+        const rtp::Scene& scene = done.scene;
+        if (dry_run) {
+          if (json) {
+            nlohmann::json j = rtp::scene_summary_json(scene);
+            j["preparation"] = rtp::prepare_report_json(done.prepare);
+            j.update(rtp::tools::json_stamp("rtpack-convert"));
+            std::cout << j.dump(2) << "\n";
+          } else {
+            std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(done.prepare);
+          }
+          if (verbose)
+            std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n", done.import_cost.seconds,
+                         done.prepare_cost.seconds, rtp::peak_rss_mib());
+          return 0;
+        }
+        const rtp::Plan& plan = done.plan;
+        const rtp::ConvertReport& rep = done.report;
+        const double t_import = done.import_cost.seconds, t_prepare = done.prepare_cost.seconds, t_plan = done.plan_cost.seconds,
+                     t_chunks = done.chunks_cost.seconds;
+        // Input = what the importer read: the glTF/.glb and its external buffers (images are never read).
+        const rtp::InputFiles& inf = scene.input;
+        const double in_bytes = double(inf.read_bytes());
+        const double per_instance = double(rep.package_bytes) / double(std::max<size_t>(1, scene.instances.size()));
+        const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
+        nlohmann::json sections = nlohmann::json::object();
+        for (const auto& [kind, s] : rep.by_kind)
+          sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks},
+                                                  {"raw_bytes", s.raw},
+                                                  {"stored_bytes", s.stored},
+                                                  {"bytes_per_unique_triangle", double(s.stored) / tris}};
+        nlohmann::json j = {{"input", rtp::utf8_display(input)},
+                            {"output", rtp::utf8_display(output)},
+                            {"input_bytes", inf.read_bytes()},
+                            {"input_files",
+                             {{"gltf_bytes", inf.gltf_bytes},
+                              {"buffer_bytes", inf.buffer_bytes},
+                              {"buffer_files", inf.buffer_files},
+                              {"images_not_read", inf.images},
+                              {"image_file_bytes_not_read", inf.image_file_bytes}}},
+                            {"package_bytes", rep.package_bytes},
+                            {"chunks", rep.chunks},
+                            {"batching_points", plan.points.size()},
+                            {"mesh_segments", plan.segments.size()},
+                            {"chunk_target", plan.chunk_target},
+                            {"unique_triangles", scene.unique_triangles()},
+                            {"instanced_triangles", scene.instanced_triangles()},
+                            {"instances", scene.instances.size()},
+                            {"bytes_per_unique_triangle", double(rep.package_bytes) / tris},
+                            {"bytes_per_instance", per_instance},
+                            {"sections", sections},
+                            {"dag", nlohmann::json::object()},
+                            {"seconds",
+                             {{"import", t_import},
+                              {"prepare", t_prepare},
+                              {"plan", t_plan},
+                              {"chunks", t_chunks},
+                              {"total", done.total_seconds()}}},
+                            {"peak_rss_mib", rtp::peak_rss_mib()}};
+        if (!no_dag) {
+          nlohmann::json hist = nlohmann::json::object();
+          for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
+          j["dag"] = {{"pool_bytes", rep.dag_pool_bytes},         {"separate_bytes", rep.dag_separate_bytes},
+                      {"set_cells", rep.dag_set_cells},           {"resolutions", hist},
+                      {"voxelize_seconds", rep.voxelize_seconds}, {"box_points", rep.box_points},
+                      {"box_node_bytes", rep.box_node_bytes}};
+        }
         j.update(rtp::tools::json_stamp("rtpack-convert"));
-        std::cout << j.dump(2) << "\n";
-      } else {
-        std::cout << rtp::scene_summary_text(scene) << "\n" << rtp::prepare_report_text(done.prepare);
-      }
-      if (verbose)
-        std::fprintf(stderr, "import %.3f s, preparation %.3f s, peak RSS %.1f MiB\n", done.import_cost.seconds,
-                     done.prepare_cost.seconds, rtp::peak_rss_mib());
-      return 0;
-    }
-    const rtp::Plan& plan = done.plan;
-    const rtp::ConvertReport& rep = done.report;
-    const double t_import = done.import_cost.seconds, t_prepare = done.prepare_cost.seconds, t_plan = done.plan_cost.seconds,
-                 t_chunks = done.chunks_cost.seconds;
-    // Input = what the importer read: the glTF/.glb and its external buffers (images are never read).
-    const rtp::InputFiles& inf = scene.input;
-    const double in_bytes = double(inf.read_bytes());
-    const double per_instance = double(rep.package_bytes) / double(std::max<size_t>(1, scene.instances.size()));
-    const double tris = double(std::max<uint64_t>(1, scene.unique_triangles()));
-    nlohmann::json sections = nlohmann::json::object();
-    for (const auto& [kind, s] : rep.by_kind)
-      sections[rtp::tools::json_key(kind)] = {{"chunks", s.chunks},
-                                              {"raw_bytes", s.raw},
-                                              {"stored_bytes", s.stored},
-                                              {"bytes_per_unique_triangle", double(s.stored) / tris}};
-    nlohmann::json j = {
-        {"input", rtp::utf8_display(input)},
-        {"output", rtp::utf8_display(output)},
-        {"input_bytes", inf.read_bytes()},
-        {"input_files",
-         {{"gltf_bytes", inf.gltf_bytes},
-          {"buffer_bytes", inf.buffer_bytes},
-          {"buffer_files", inf.buffer_files},
-          {"images_not_read", inf.images},
-          {"image_file_bytes_not_read", inf.image_file_bytes}}},
-        {"package_bytes", rep.package_bytes},
-        {"chunks", rep.chunks},
-        {"batching_points", plan.points.size()},
-        {"mesh_segments", plan.segments.size()},
-        {"chunk_target", plan.chunk_target},
-        {"unique_triangles", scene.unique_triangles()},
-        {"instanced_triangles", scene.instanced_triangles()},
-        {"instances", scene.instances.size()},
-        {"bytes_per_unique_triangle", double(rep.package_bytes) / tris},
-        {"bytes_per_instance", per_instance},
-        {"sections", sections},
-        {"dag", nlohmann::json::object()},
-        {"seconds",
-         {{"import", t_import}, {"prepare", t_prepare}, {"plan", t_plan}, {"chunks", t_chunks}, {"total", done.total_seconds()}}},
-        {"peak_rss_mib", rtp::peak_rss_mib()}};
-    if (!no_dag) {
-      nlohmann::json hist = nlohmann::json::object();
-      for (const auto& [r, n] : rep.dag_resolutions) hist[std::to_string(r)] = n;
-      j["dag"] = {{"pool_bytes", rep.dag_pool_bytes},         {"separate_bytes", rep.dag_separate_bytes},
-                  {"set_cells", rep.dag_set_cells},           {"resolutions", hist},
-                  {"voxelize_seconds", rep.voxelize_seconds}, {"box_points", rep.box_points},
-                  {"box_node_bytes", rep.box_node_bytes}};
-    }
-    j.update(rtp::tools::json_stamp("rtpack-convert"));
-    if (json) {
-      std::cout << j.dump(2) << "\n";
-    } else if (!quiet) {
-      std::printf("%s -> %s\n", input.c_str(), output.c_str());
-      std::printf("  triangles      %llu unique, %llu instanced\n", (unsigned long long)scene.unique_triangles(),
-                  (unsigned long long)scene.instanced_triangles());
-      std::printf("  chunks         %llu (%zu batching points, %zu mesh segments; target %llu triangles)\n",
-                  (unsigned long long)rep.chunks, plan.points.size(), plan.segments.size(),
-                  (unsigned long long)plan.chunk_target);
-      std::string read = human(in_bytes) + " read";
-      if (inf.buffer_files > 0)
-        read += " (" + human(double(inf.gltf_bytes)) + " glTF + " + std::to_string(inf.buffer_files) +
-                (inf.buffer_files == 1 ? " buffer " : " buffers ") + human(double(inf.buffer_bytes)) + ")";
-      if (inf.images > 0) read += ", " + std::to_string(inf.images) + (inf.images == 1 ? " image" : " images") + " not read";
-      // Bytes per instance only where some mesh is instanced: for six meshes placed once each, the
-      // package's bytes over six (FlightHelmet: "692978.7 B per instance") described nothing.
-      const bool instancing = std::any_of(plan.mesh_instanced.begin(), plan.mesh_instanced.end(), [](auto m) { return bool(m); });
-      char per_inst[64] = "no mesh instanced";
-      if (instancing) std::snprintf(per_inst, sizeof per_inst, "%.1f B per instance", per_instance);
-      std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %s)\n", read.c_str(),
-                  human(double(rep.package_bytes)).c_str(), double(rep.package_bytes) / tris, per_inst);
-      for (const auto& [kind, s] : rep.by_kind)
-        std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
-                    human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
-      if (!no_dag) {
-        std::string res;
-        for (const auto& [r, n] : rep.dag_resolutions)
-          res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
-        if (rep.box_points)
-          res += (res.empty() ? "" : ", ") + std::to_string(rep.box_points) + " by instance boxes (" +
-                 human(double(rep.box_node_bytes)) + " of nodes)";
-        std::printf("  culling DAGs   %s in one pool (%s if built apart), %llu set cells; %s; voxelized in %.2f s\n",
-                    human(double(rep.dag_pool_bytes)).c_str(), human(double(rep.dag_separate_bytes)).c_str(),
-                    (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);
-      }
-      std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n", t_import,
-                  t_prepare, t_plan, t_chunks, rtp::peak_rss_mib());
-    }
-    if (verbose) {  // what -v adds: each stage with the peak RSS reached by its end, and the settings
-      const std::pair<const char*, rtp::StageCost> stages[4] = {{"import", done.import_cost},
-                                                                {"prepare", done.prepare_cost},
-                                                                {"batching points", done.plan_cost},
-                                                                {"chunks", done.chunks_cost}};
-      for (const auto& [name, c] : stages)
-        std::fprintf(stderr, "stage %-16s %8.3f s  peak RSS %7.1f MiB\n", name, c.seconds, c.peak_rss_mib);
-      std::fprintf(stderr, "  of chunks: voxelize %.3f s (summed over threads)\n", rep.voxelize_seconds);
-      std::fprintf(stderr, "memory: malloc huge pages %s; %.1f MiB of anonymous huge pages resident at the end\n",
-                   rtp::tools::huge_page_state().c_str(), rtp::tools::anon_huge_pages_mib());
-      std::fprintf(stderr, "settings: %d threads, W=%d, B=%d, zstd level %d, %s build, chunk target %llu triangles\n",
-                   int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), width, leaf_width,
-                   zstd_level, build.c_str(), (unsigned long long)plan.chunk_target);
-    }
-  } catch (const rtp::Error& e) {
-    progress.finish();
-    return rtp::tools::report_error("rtpack-convert", json, input, e.code(), e.what());
-  } catch (const std::bad_alloc&) {
-    progress.finish();
-    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal, "out of memory");
-  } catch (const std::exception& e) {
-    progress.finish();
-    return rtp::tools::report_error("rtpack-convert", json, input, rtp::ExitCode::kInternal,
-                                    std::string("internal error: ") + e.what());
-  }
-  return 0;
+        if (json) {
+          std::cout << j.dump(2) << "\n";
+        } else if (!quiet) {
+          std::printf("%s -> %s\n", input.c_str(), output.c_str());
+          std::printf("  triangles      %llu unique, %llu instanced\n", (unsigned long long)scene.unique_triangles(),
+                      (unsigned long long)scene.instanced_triangles());
+          std::printf("  chunks         %llu (%zu batching points, %zu mesh segments; target %llu triangles)\n",
+                      (unsigned long long)rep.chunks, plan.points.size(), plan.segments.size(),
+                      (unsigned long long)plan.chunk_target);
+          std::string read = human(in_bytes) + " read";
+          if (inf.buffer_files > 0)
+            read += " (" + human(double(inf.gltf_bytes)) + " glTF + " + std::to_string(inf.buffer_files) +
+                    (inf.buffer_files == 1 ? " buffer " : " buffers ") + human(double(inf.buffer_bytes)) + ")";
+          if (inf.images > 0) read += ", " + std::to_string(inf.images) + (inf.images == 1 ? " image" : " images") + " not read";
+          // Bytes per instance only where some mesh is instanced: for six meshes placed once each, the
+          // package's bytes over six (FlightHelmet: "692978.7 B per instance") described nothing.
+          const bool instancing =
+              std::any_of(plan.mesh_instanced.begin(), plan.mesh_instanced.end(), [](auto m) { return bool(m); });
+          char per_inst[64] = "no mesh instanced";
+          if (instancing) std::snprintf(per_inst, sizeof per_inst, "%.1f B per instance", per_instance);
+          std::printf("  bytes          %s -> %s stored (%.1f B per unique triangle, %s)\n", read.c_str(),
+                      human(double(rep.package_bytes)).c_str(), double(rep.package_bytes) / tris, per_inst);
+          for (const auto& [kind, s] : rep.by_kind)
+            std::printf("    %-28s %5llu chunks %10s raw %10s stored %6.1f B/tri\n", kind.c_str(), (unsigned long long)s.chunks,
+                        human(double(s.raw)).c_str(), human(double(s.stored)).c_str(), double(s.stored) / tris);
+          if (!no_dag) {
+            std::string res;
+            for (const auto& [r, n] : rep.dag_resolutions)
+              res += (res.empty() ? "" : ", ") + std::to_string(n) + " at " + std::to_string(r) + "^3";
+            if (rep.box_points)
+              res += (res.empty() ? "" : ", ") + std::to_string(rep.box_points) + " by instance boxes (" +
+                     human(double(rep.box_node_bytes)) + " of nodes)";
+            std::printf("  culling DAGs   %s in one pool (%s if built apart), %llu set cells; %s; voxelized in %.2f s\n",
+                        human(double(rep.dag_pool_bytes)).c_str(), human(double(rep.dag_separate_bytes)).c_str(),
+                        (unsigned long long)rep.dag_set_cells, res.c_str(), rep.voxelize_seconds);
+          }
+          std::printf("  time           import %.2f s, prepare %.2f s, plan %.2f s, chunks %.2f s; peak RSS %.0f MiB\n", t_import,
+                      t_prepare, t_plan, t_chunks, rtp::peak_rss_mib());
+        }
+        if (verbose) {  // what -v adds: each stage with the peak RSS reached by its end, and the settings
+          const std::pair<const char*, rtp::StageCost> stages[4] = {{"import", done.import_cost},
+                                                                    {"prepare", done.prepare_cost},
+                                                                    {"batching points", done.plan_cost},
+                                                                    {"chunks", done.chunks_cost}};
+          for (const auto& [name, c] : stages)
+            std::fprintf(stderr, "stage %-16s %8.3f s  peak RSS %7.1f MiB\n", name, c.seconds, c.peak_rss_mib);
+          std::fprintf(stderr, "  of chunks: voxelize %.3f s (summed over threads)\n", rep.voxelize_seconds);
+          std::fprintf(stderr, "memory: malloc huge pages %s; %.1f MiB of anonymous huge pages resident at the end\n",
+                       rtp::tools::huge_page_state().c_str(), rtp::tools::anon_huge_pages_mib());
+          std::fprintf(stderr, "settings: %d threads, W=%d, B=%d, zstd level %d, %s build, chunk target %llu triangles\n",
+                       int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), width, leaf_width,
+                       zstd_level, build.c_str(), (unsigned long long)plan.chunk_target);
+        }
+        return 0;
+      },
+      [&] { progress.finish(); });
 }

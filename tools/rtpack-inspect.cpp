@@ -253,7 +253,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return rtp::tools::parse_error_exit(app, e, "rtpack-inspect", argc, argv);
   }
-  try {
+  return rtp::tools::run_reporting_errors("rtpack-inspect", json_out, input, [&]() -> int {
     const rtp::PackageReader reader(input);
     rtp::InspectOptions opt;
     opt.chunks = chunks;
@@ -280,13 +280,6 @@ int main(int argc, char** argv) {
       std::cerr << "error: " << input << ": " << failed << "\n";
       return int(rtp::ExitCode::kInputInvalid);
     }
-  } catch (const rtp::Error& e) {
-    return rtp::tools::report_error("rtpack-inspect", json_out, input, e.code(), e.what());
-  } catch (const std::bad_alloc&) {
-    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal, "out of memory");
-  } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-inspect", json_out, input, rtp::ExitCode::kInternal,
-                                    std::string("internal error: ") + e.what());
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
   if (packet_given && packet && !budget_text.empty())
     return usage("--packet: the out-of-core tracer (--memory-budget) traces single rays; leave out one of them");
   if (!packet_given && render && budget_text.empty()) packet = 16;
-  try {
+  return rtp::tools::run_reporting_errors("rtpack-trace", json, package, [&]() -> int {
     // No output may be an input (or another output): compared by device and inode.
     for (const std::string* out : {&hits_path, &shading_path, &image_path}) {
       rtp::check_not_same_file(package, *out);
@@ -387,13 +387,6 @@ int main(int argc, char** argv) {
                      r.dir[2], r.tnear, r.tfar);
       }
     }
-  } catch (const rtp::Error& e) {
-    return rtp::tools::report_error("rtpack-trace", json, package, e.code(), e.what());
-  } catch (const std::bad_alloc&) {
-    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal, "out of memory");
-  } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-trace", json, package, rtp::ExitCode::kInternal,
-                                    std::string("internal error: ") + e.what());
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -184,7 +184,7 @@ int main(int argc, char** argv) {
   }
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
-  try {
+  return rtp::tools::run_reporting_errors("rtpack-validate", json, package, [&]() -> int {
     const rtp::PackageReader reader(package);
     const bool embree = !source.empty();
     std::vector<std::string> kinds;
@@ -380,13 +380,6 @@ int main(int argc, char** argv) {
     if (failures)
       return rtp::tools::report_error("rtpack-validate", false, package, rtp::ExitCode::kInputInvalid,
                                       std::to_string(failures) + " rays answered wrongly (rays named above)");
-  } catch (const rtp::Error& e) {
-    return rtp::tools::report_error("rtpack-validate", json, package, e.code(), e.what());
-  } catch (const std::bad_alloc&) {
-    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal, "out of memory");
-  } catch (const std::exception& e) {
-    return rtp::tools::report_error("rtpack-validate", json, package, rtp::ExitCode::kInternal,
-                                    std::string("internal error: ") + e.what());
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -6,6 +6,9 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <cctype>
+#include <functional>
+#include <new>
+#include <stdexcept>
 #include <string>
 
 #include "core/error.h"
@@ -63,6 +66,26 @@ inline int report_error(const char* tool, bool json, const std::string& input, E
   std::cerr << "error: " << input << ": " << message << "\n";
   if (json) std::cout << error_json(tool, input, code, message).dump(2) << "\n";
   return int(code);
+}
+
+// A tool's work, with every failure reported as above: an rtp::Error with its own exit code, out of
+// memory and any other exception as internal errors (ExitCode::kInternal). on_error runs first (e.g. ends a progress
+// line). Returns body()'s exit code.
+template <class Body>
+int run_reporting_errors(const char* tool, bool json, const std::string& input, Body&& body,
+                         const std::function<void()>& on_error = {}) {
+  try {
+    return body();
+  } catch (const Error& e) {
+    if (on_error) on_error();
+    return report_error(tool, json, input, e.code(), e.what());
+  } catch (const std::bad_alloc&) {
+    if (on_error) on_error();
+    return report_error(tool, json, input, ExitCode::kInternal, "out of memory");
+  } catch (const std::exception& e) {
+    if (on_error) on_error();
+    return report_error(tool, json, input, ExitCode::kInternal, std::string("internal error: ") + e.what());
+  }
 }
 
 // A command line CLI11 refused (an unknown option, a missing or invalid value): CLI11's text on stderr as

@@ -1,9 +1,8 @@
 #pragma once
 // A thread that flushes a file's written data to stable storage (fdatasync) while its writer goes on,
-// so that the writer's final fsync waits only for what came after the last flush. On this VM the
-// fsync of a new 4 MB file took 5-6 ms even when its pages had been written back (sync_file_range)
-// beforehand, and 0.2 ms after an earlier fdatasync: the wait is the device's cache flush, which
-// only fdatasync/fsync ask for.
+// so that the writer's final fsync waits only for what came after the last flush: the wait is the
+// device's cache flush, which only fdatasync/fsync ask for (a new 4 MB file: 5-6 ms, 0.2 ms after an
+// earlier fdatasync; docs/notes/2026-12-07-writer-measurements.md §8).
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>

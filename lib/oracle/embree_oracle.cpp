@@ -189,13 +189,21 @@ EmbreeOracle::EmbreeOracle(const Scene& scene, OracleQuality quality, bool gathe
 
 EmbreeOracle::~EmbreeOracle() { delete impl_; }
 
-OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, RayCoherence coherence) const {
+namespace {
+
+RTCIntersectContextFlags context_flags(RayCoherence coherence) {
+  return coherence == RayCoherence::kCoherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+}
+
+// The block loop of both queries: per TBB task, blocks of kBatch rays; the valid ones are packed into a
+// stack buffer of Embree rays (slot[] remembers where each came from), traced in one call, unpacked.
+// Invalid and unsupported rays are counted and answered by skip(i).
+template <class EmbreeRay, class Skip, class Load, class Trace, class Store>
+OracleStats in_batches(const fmt::Ray* rays, size_t n, RayCoherence coherence, Skip skip, Load load, Trace trace, Store store) {
   std::atomic<uint64_t> invalid{0}, unsupported{0};
-  RTCScene top = impl_->top;
-  const RTCIntersectContextFlags cflags =
-      coherence == RayCoherence::kCoherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  const RTCIntersectContextFlags cflags = context_flags(coherence);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
-    alignas(64) RTCRayHit buf[kBatch];
+    alignas(64) EmbreeRay buf[kBatch];
     uint32_t slot[kBatch];
     uint64_t bad = 0, unsup = 0;
     RTCIntersectContext ctx;
@@ -208,59 +216,81 @@ OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n
         const RayStatus st = ray_status(rays[i]);
         if (st != RayStatus::kValid) {
           (st == RayStatus::kInvalid ? bad : unsup) += 1;
-          set_miss(hits[i]);
+          skip(i);
           continue;
         }
-        RTCRayHit& rh = buf[m];
-        load_ray(rays[i], rh.ray);
+        load(rays[i], buf[m]);
+        slot[m++] = uint32_t(i - b);
+      }
+      if (m > 0) trace(&ctx, buf, m);
+      for (unsigned k = 0; k < m; ++k) store(b + slot[k], buf[k]);
+    }
+    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
+    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
+  });
+  return {n, invalid.load(), unsupported.load()};
+}
+
+// Packets of 16 neighbouring rays (Embree's packet traversal; ray order decides coherence).
+void intersect_packets16(RTCScene top, RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) {
+  for (unsigned p = 0; p < m; p += 16) {
+    alignas(64) RTCRayHit16 pk;
+    alignas(64) int valid[16];
+    for (unsigned j = 0; j < 16; ++j) {
+      valid[j] = p + j < m ? -1 : 0;
+      // Inactive lanes carry a copy of the packet's first ray: Embree's AVX-512 rtcOccluded16 was
+      // seen to spin forever on zeroed inactive lanes (zero direction).
+      const RTCRayHit& src = buf[valid[j] ? p + j : p];
+      pk.ray.org_x[j] = src.ray.org_x;
+      pk.ray.org_y[j] = src.ray.org_y;
+      pk.ray.org_z[j] = src.ray.org_z;
+      pk.ray.tnear[j] = src.ray.tnear;
+      pk.ray.dir_x[j] = src.ray.dir_x;
+      pk.ray.dir_y[j] = src.ray.dir_y;
+      pk.ray.dir_z[j] = src.ray.dir_z;
+      pk.ray.time[j] = 0;
+      pk.ray.tfar[j] = src.ray.tfar;
+      pk.ray.mask[j] = 0xFFFFFFFFu;
+      pk.ray.id[j] = 0;
+      pk.ray.flags[j] = 0;
+      pk.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+      pk.hit.primID[j] = RTC_INVALID_GEOMETRY_ID;
+      pk.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, top, ctx, &pk);
+    for (unsigned j = 0; j < 16 && p + j < m; ++j) {
+      RTCRayHit& dst = buf[p + j];
+      dst.ray.tfar = pk.ray.tfar[j];
+      dst.hit.geomID = pk.hit.geomID[j];
+      dst.hit.primID = pk.hit.primID[j];
+      dst.hit.instID[0] = pk.hit.instID[0][j];
+      dst.hit.u = pk.hit.u[j];
+      dst.hit.v = pk.hit.v[j];
+    }
+  }
+}
+
+}  // namespace
+
+OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, RayCoherence coherence) const {
+  RTCScene top = impl_->top;
+  return in_batches<RTCRayHit>(
+      rays, n, coherence, [&](size_t i) { set_miss(hits[i]); },
+      [](const fmt::Ray& r, RTCRayHit& rh) {
+        load_ray(r, rh.ray);
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        slot[m++] = uint32_t(i - b);
-      }
-      if (m > 0 && coherence == RayCoherence::kCoherent) {
-        // Packets of 16 neighbouring rays (Embree's packet traversal; ray order decides coherence).
-        for (unsigned p = 0; p < m; p += 16) {
-          alignas(64) RTCRayHit16 pk;
-          alignas(64) int valid[16];
-          for (unsigned j = 0; j < 16; ++j) {
-            valid[j] = p + j < m ? -1 : 0;
-            // Inactive lanes carry a copy of the packet's first ray: Embree's AVX-512 rtcOccluded16 was
-            // seen to spin forever on zeroed inactive lanes (zero direction).
-            const RTCRayHit& src = buf[valid[j] ? p + j : p];
-            pk.ray.org_x[j] = src.ray.org_x;
-            pk.ray.org_y[j] = src.ray.org_y;
-            pk.ray.org_z[j] = src.ray.org_z;
-            pk.ray.tnear[j] = src.ray.tnear;
-            pk.ray.dir_x[j] = src.ray.dir_x;
-            pk.ray.dir_y[j] = src.ray.dir_y;
-            pk.ray.dir_z[j] = src.ray.dir_z;
-            pk.ray.time[j] = 0;
-            pk.ray.tfar[j] = src.ray.tfar;
-            pk.ray.mask[j] = 0xFFFFFFFFu;
-            pk.ray.id[j] = 0;
-            pk.ray.flags[j] = 0;
-            pk.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-            pk.hit.primID[j] = RTC_INVALID_GEOMETRY_ID;
-            pk.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
-          }
-          rtcIntersect16(valid, top, &ctx, &pk);
-          for (unsigned j = 0; j < 16 && p + j < m; ++j) {
-            RTCRayHit& dst = buf[p + j];
-            dst.ray.tfar = pk.ray.tfar[j];
-            dst.hit.geomID = pk.hit.geomID[j];
-            dst.hit.primID = pk.hit.primID[j];
-            dst.hit.instID[0] = pk.hit.instID[0][j];
-            dst.hit.u = pk.hit.u[j];
-            dst.hit.v = pk.hit.v[j];
-          }
+      },
+      [&](RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) {
+        if (coherence == RayCoherence::kCoherent) {
+          intersect_packets16(top, ctx, buf, m);
+        } else {
+          rtcIntersect1M(top, ctx, buf, m, sizeof(RTCRayHit));
         }
-      } else if (m > 0) {
-        rtcIntersect1M(top, &ctx, buf, m, sizeof(RTCRayHit));
-      }
-      for (unsigned k = 0; k < m; ++k) {
-        const RTCRayHit& rh = buf[k];
-        fmt::Hit& h = hits[b + slot[k]];
+      },
+      [&](size_t i, const RTCRayHit& rh) {
+        fmt::Hit& h = hits[i];
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
           set_miss(h);
         } else {
@@ -270,50 +300,19 @@ OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n
           h.u = rh.hit.u;
           h.v = rh.hit.v;
         }
-      }
-    }
-    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
-    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
-  });
-  return {n, invalid.load(), unsupported.load()};
+      });
 }
 
 OracleStats EmbreeOracle::occluded(const fmt::Ray* rays, uint8_t* occluded, size_t n, RayCoherence coherence) const {
-  std::atomic<uint64_t> invalid{0}, unsupported{0};
   RTCScene top = impl_->top;
-  const RTCIntersectContextFlags cflags =
-      coherence == RayCoherence::kCoherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
-    alignas(64) RTCRay buf[kBatch];
-    uint32_t slot[kBatch];
-    uint64_t bad = 0, unsup = 0;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = cflags;
-    for (size_t b = range.begin(); b < range.end(); b += kBatch) {
-      const size_t e = std::min(range.end(), b + kBatch);
-      unsigned m = 0;
-      for (size_t i = b; i < e; ++i) {
-        const RayStatus st = ray_status(rays[i]);
-        if (st != RayStatus::kValid) {
-          (st == RayStatus::kInvalid ? bad : unsup) += 1;
-          occluded[i] = 0;
-          continue;
-        }
-        load_ray(rays[i], buf[m]);
-        slot[m++] = uint32_t(i - b);
-      }
+  return in_batches<RTCRay>(
+      rays, n, coherence, [&](size_t i) { occluded[i] = 0; }, [](const fmt::Ray& r, RTCRay& e) { load_ray(r, e); },
       // A stream in both cases (the COHERENT flag lets Embree form packets). Not rtcOccluded16: the
       // Debian 3.13.5 AVX-512 build spins forever in it after an rtcIntersect1M call made inside a
       // one-thread tbb::task_arena (reproduced on samples/generated/gallery.glb).
-      if (m > 0) rtcOccluded1M(top, &ctx, buf, m, sizeof(RTCRay));
+      [&](RTCIntersectContext* ctx, RTCRay* buf, unsigned m) { rtcOccluded1M(top, ctx, buf, m, sizeof(RTCRay)); },
       // Embree sets tfar = -inf on an occluded ray.
-      for (unsigned k = 0; k < m; ++k) occluded[b + slot[k]] = buf[k].tfar == -kInf ? 1 : 0;
-    }
-    if (bad) invalid.fetch_add(bad, std::memory_order_relaxed);
-    if (unsup) unsupported.fetch_add(unsup, std::memory_order_relaxed);
-  });
-  return {n, invalid.load(), unsupported.load()};
+      [&](size_t i, const RTCRay& e) { occluded[i] = e.tfar == -kInf ? 1 : 0; });
 }
 
 namespace {

@@ -352,10 +352,8 @@ std::vector<Job> point_resident_jobs(const Scene& scene, const Plan& plan, const
 // large ones by zstd's own threads (see compress), for the late jobs that nothing else runs beside:
 // forest-1m's 27 MB DAG pool was 0.1 s of one thread while the other idled.
 // The source map (per triangle its glTF primitive and index: runs of consecutive integers) at level 3
-// when levels 1 and 2 are asked for: there zstd's dfast matches whole runs where fast (1) and its level 2
-// code literals, so level 3 is both faster and smaller (zstd -b, FlightHelmet's 740 KiB map: level 1
-// 284 MB/s for 7.5x, level 3 536-559 MB/s for 16.6x; forest-1m's: 317 and 469 MB/s, 7.6x and 10.6x). The
-// other resident chunks compress faster at level 1.
+// when levels 1 and 2 are asked for: zstd's dfast matches whole runs, both faster and smaller there
+// (FlightHelmet's map 16.6x at 536 MB/s against 7.5x at 284; docs/notes/2026-12-07-writer-measurements.md §4).
 int resident_level(ChunkKind kind, int level) { return kind == ChunkKind::kSourceMap && (level == 1 || level == 2) ? 3 : level; }
 
 std::vector<Job> compress_all(std::vector<Job> jobs, int level, int workers = 0) {
@@ -396,9 +394,8 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
   std::vector<fmt::CullNode<W>> cull_nodes;  // the instance-box proxies' nodes, point after point
   // Instance boxes instead of voxels (SPEC §4.5, 7.0) for points of instances only, at least this many:
   // there each instance spans a few cells of the point's grid, and its box culls more than its voxels
-  // (forest-1m, 244 instances a point: random rays 55.6 % of point visits culled against 41.1 % at
-  // 128^3, bounce rays 8.0 against 5.4 %) for no voxelization (35 % of that convert); with a few large
-  // instances (forest-2k, 21) the voxels cull more. An explicit --dag-resolution keeps voxels everywhere.
+  // (forest-1m: 55.6 % of random-ray visits culled against 41.1 %; docs/notes/2026-12-07-writer-measurements.md
+  // §5). An explicit --dag-resolution keeps voxels everywhere.
   auto box_proxy = [&](const BatchingPoint& bp) {
     return o.dag && o.voxel.resolution == 0 && bp.pieces.empty() && bp.instances.size() >= kBoxProxyMinInstances;
   };

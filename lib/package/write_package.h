@@ -14,21 +14,13 @@
 
 namespace rtp {
 
-// The default zstd level of every chunk, chosen by docs/package/zstd.md (scripts/chart-zstd): the level
-// with the least time to make a package and read it once from a 100 MB/s disk (convert + load + bytes /
-// 100 MB/s) over FlightHelmet and forest-2k, times within 3 % of the least counting as a tie that the
-// faster convert wins (the convert has its own bound: at most 3x an Embree HIGH build). Levels 1 and 2
-// tie (their order flips between runs); level 1 (zstd 1.5's fast matcher with a 2^14-entry hash table;
-// level 2 the same matcher with 2^16, level 3 double-fast) converts 3 % faster over the two scenes
-// (0.203 against 0.210 s, one thread; FlightHelmet's leaf-block chunks 8.8 against 10.8 ms, forest-1m's
-// 340 MB of chunks 1.02 against 1.28 s) and stores 2.0 % more. Levels 6 and 9 store 11-14 % less at
-// 1.7-2.5x level 1's chunks stage.
+// The default zstd level of every chunk: the least convert + load + read-at-100-MB/s time over
+// FlightHelmet and forest-2k (docs/package/zstd.md); level 1 converts 3 % faster than the tied level 2
+// (docs/notes/2026-12-07-writer-measurements.md §1).
 inline constexpr int kDefaultZstdLevel = 1;
 // zstd's shortest match in the leaf-block chunks (ConvertOptions::zstd_leaf_min_match), zstd's longest
-// choice: level 3's own 5 finds the many 5- and 6-byte repeats of the leaf blocks' floats, each a
-// sequence to decode. On unique-50m's batching points (232 MB, one thread, raw literals): 5 → ratio
-// 1.840 at 1311 MB/s decompressed, 6 → 1.634 at 1640 MB/s, 7 → 1.585 at 1941 MB/s; out of core at a
-// 10 % budget that is the load stage's main cost (docs/trace/budget.md, docs/package/zstd.md).
+// choice: decompressed 1.5x faster than level 3's own 5 on unique-50m's points (1941 vs 1311 MB/s;
+// docs/notes/2026-12-07-writer-measurements.md §2).
 inline constexpr int kDefaultLeafMinMatch = 7;
 // Batching points of instances only, at least this many, cull by their instance boxes instead of voxels
 // (formats/dag.h kDagBoxes; write_package.cpp says why).
@@ -40,11 +32,9 @@ struct ConvertOptions {
   BuildOptions bvh;
   int zstd_level = kDefaultZstdLevel;
   // Batching points and mesh segments (the chunks read while tracing) whose leaf blocks are more than
-  // half their bytes are compressed with zstd's literals left raw, not Huffman-coded: on unique-50m's
-  // float-heavy leaf blocks this decompresses 1.4x faster (977 vs 694 MB/s, one 34 MB chunk, level 3)
-  // for 4 % more bytes; the out-of-core tracer's loads are mostly decompression (docs/trace/budget.md).
-  // Chunks of instance BVHs and records keep Huffman literals (raw ones made forest-1m 7.5 % larger for
-  // nothing: its loads are small). --zstd-huffman-literals turns it off everywhere.
+  // half their bytes are compressed with zstd's literals left raw, not Huffman-coded: 1.4x faster to
+  // decompress for 4 % more bytes (docs/notes/2026-12-07-writer-measurements.md §3). Chunks of instance
+  // BVHs and records keep Huffman literals. --zstd-huffman-literals turns it off everywhere.
   bool zstd_raw_literals = true;
   // The same chunks' shortest zstd match (3..7; 0: the level's own: level 3's 5, level 2's 5 or 6 by
   // chunk size): 16 % more bytes in them than level 3's 5, decompressed 1.5x faster (kDefaultLeafMinMatch,

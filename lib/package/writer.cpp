@@ -47,10 +47,8 @@ AlignedBytes PackageWriter::compress(const void* data, size_t size, int level, f
     // default, which only makes the package a little smaller and its loads slower.
     if (raw_literals) ZSTD_CCtx_setParameter(cctx, ZSTD_c_literalCompressionMode, ZSTD_ps_disable);
     // zstd's fast levels (1 and below) hash every position into a table that the context clears per
-    // frame and that misses L1 above 4 KiB: at its own choice for the size (2^12 entries for a 36 KB
-    // batching point, 2^13 for 4 MB) compressing forest points ran at 204 MB/s, at 2^10 at 255-283
-    // MB/s for 0.4 % more bytes; FlightHelmet's 4 MB point at 2^12 gained 12 % for 1.2 % more bytes
-    // and 2^10 nothing more (zstd -b, this VM). So 2^10 below 1 MiB, 2^12 above.
+    // frame and that misses L1 above 4 KiB: 2^10 entries below 1 MiB, 2^12 above (forest points 255-283
+    // MB/s against 204 at zstd's own choice; docs/notes/2026-12-07-writer-measurements.md §6).
     if (level <= 1) ZSTD_CCtx_setParameter(cctx, ZSTD_c_hashLog, size < (size_t(1) << 20) ? 10 : 12);
     // A libzstd built without threads refuses this and compresses the frame itself: the same bytes for
     // any --threads still (Debian's has them).
@@ -92,9 +90,8 @@ const fmt::TocEntry& PackageWriter::add_packed(fmt::ChunkKind kind, uint64_t id,
   write_at(offset_, stored.data(), stored.size());
   offset_ = (offset_ + stored.size() + fmt::kAlignment - 1) / fmt::kAlignment * fmt::kAlignment;
   // The chunks are flushed to the disk (fdatasync on a thread of OutputFile's own) while later ones are
-  // built, each time another MiB is written: finish's fsync of forest-1m's 123 MB was 314-366 ms at the
-  // end of a 2-thread convert, 105-212 ms with a writeback (sync_file_range) every 8 MiB, and is 7 ms
-  // with this; FlightHelmet's (4 MB) 5-7 ms, now about 1.
+  // built, each time another MiB is written: the final fsync of forest-1m's 123 MB fell from 314-366 ms
+  // to 7 (docs/notes/2026-12-07-writer-measurements.md §7).
   if (offset_ - written_back_ >= kWritebackBytes) {
     out_.start_writeback();
     written_back_ = offset_;

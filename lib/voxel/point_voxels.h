@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cluster/cluster.h"
+#include "formats/bvh_layout.h"
 #include "voxel/voxel.h"
 
 namespace rtp::voxel {
