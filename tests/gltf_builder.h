@@ -151,7 +151,7 @@ inline bool shared_assets_required() {
 // RTP_REQUIRE_SHARED. Returns from the test body either way.
 #define RTP_NEED_SHARED(where)                                                                                            \
   do {                                                                                                                    \
-    const std::filesystem::path rtp_need_shared_path_ = (where);                                                          \
+    const std::filesystem::path& rtp_need_shared_path_ = (where);                                                         \
     if (!std::filesystem::exists(rtp_need_shared_path_)) {                                                                \
       if (::rtp::test::shared_assets_required())                                                                          \
         FAIL() << rtp_need_shared_path_ << " is absent, and RTP_REQUIRE_SHARED is set (../shared/assets)";                \

@@ -166,6 +166,7 @@ TEST(Cluster, DeterministicAndDerivedTarget) {
 TEST(Cluster, DegenerateAllObjectsAtOnePoint) {
   GltfBuilder gb = one_triangle();
   std::vector<int> roots;
+  roots.reserve(300);
   for (int i = 0; i < 300; ++i) roots.push_back(gb.add_node({{"mesh", 0}}));
   gb.set_scene(roots);
   const auto dir = temp_dir("cluster_degenerate");

@@ -376,7 +376,7 @@ class Culling : public ::testing::Test {
     const Converted c = convert(sc.path, dir, vo, sc.points);
     EXPECT_TRUE(c.tracer->has_dags());
     const std::vector<fmt::Ray> rays = scene_rays(c, scaled(sc.per_kind), scaled(2 * sc.per_kind), 17);
-    const CullTally t = check_culling(c, rays);
+    CullTally t = check_culling(c, rays);
     print(sc.name, t, mode);
     return t;
   }

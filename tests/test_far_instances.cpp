@@ -85,7 +85,7 @@ std::string write_scene(const std::filesystem::path& dir) {
   nlohmann::json m = nlohmann::json::array();  // column-major 4x4
   for (int c = 0; c < 4; ++c)
     for (int row = 0; row < 4; ++row)
-      m.push_back(c == 3 ? (row == 3 ? 1.0 : p[2].t[size_t(row)]) : (row == 3 ? 0.0 : r[size_t(3 * row + c)] * kScale));
+      m.push_back(c == 3 ? (row == 3 ? 1.0 : p[2].t[size_t(row)]) : (row == 3 ? 0.0 : r[3 * size_t(row) + size_t(c)] * kScale));
   roots.push_back(b.add_node({{"mesh", 0}, {"matrix", m}}));
   roots.push_back(trs(0, p[3], q, kScale));
   roots.push_back(trs(1, p[4], q2, kScale));

@@ -73,7 +73,7 @@ class HardeningFiles : public ::testing::Test {
   }
   // A package of the triangle, and a ray file, in `in`.
   std::string package() {
-    const std::string p = (in / "p.rtp").string();
+    std::string p = (in / "p.rtp").string();
     const ToolResult r = tool("rtpack-convert", {"-q", glb(), "-o", p});
     EXPECT_EQ(r.code, 0) << r.err;
     write_bytes(in / "rays.bin", four_rays());

@@ -428,7 +428,10 @@ TEST(MeshClean, WeldKeepsNormalAndUvSeams) {
   // Equal normals, differing uvs (a uv seam): still kept apart.
   Mesh uv_seam = hard_edged_cube(0);
   for (Vec3f& n : uv_seam.normals) n = {0, 0, 1};
-  for (size_t v = 0; v < uv_seam.uvs.size(); ++v) uv_seam.uvs[v].x += 10.0f * float(v / 6);  // per face
+  for (size_t v = 0; v < uv_seam.uvs.size(); ++v) {
+    const size_t face = v / 6;  // 6 corners per face
+    uv_seam.uvs[v].x += 10.0f * float(face);
+  }
   clean_mesh(uv_seam, {.weld_eps = 0});
   EXPECT_EQ(uv_seam.positions.size(), 24u);
   // Without attributes the cube welds to 8 vertices.

@@ -131,7 +131,8 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays) {
       for (uint32_t N : kNs) {
         const std::string what =
             "W=" + std::to_string(W) + " " + isa_name(isa) + " " + order_name(order) + " N=" + std::to_string(N);
-        Multi cull{std::vector<fmt::Hit>(n * N), std::vector<uint32_t>(n)}, all = cull;
+        Multi cull{std::vector<fmt::Hit>(n * N), std::vector<uint32_t>(n)};
+        Multi all = cull;
         trace_multi<W, W>(bvh.view(), rays.data(), n, N, cull.hits.data(), cull.counts.data(), o);
         trace_multi<W, W>(bvh.view(), rays.data(), n, N, all.hits.data(), all.counts.data(), o, MultiHitMethod::kCollectAll);
         expect_well_formed(rays, cull, N, what);
@@ -151,7 +152,7 @@ void check_width(const Scene& scene, const std::vector<fmt::Ray>& rays) {
             }
           }
         }
-        by_n.push_back(std::move(cull));
+        by_n.push_back(cull);
       }
       // A smaller N is a prefix of a larger one.
       for (size_t a = 0; a + 1 < by_n.size(); ++a)

@@ -239,7 +239,7 @@ TEST(OracleEmbree, PacketPathIsForTimingOnly) {
     for (size_t i = 0; i < n; ++i) occ_diff += oa[i] != ob[i];
     EXPECT_LE(occ_diff, n / 100);
     std::printf("[   note   ] %s: Embree coherent vs stream: %llu closest-hit and %zu any-hit disagreements of %zu\n",
-                ray_kind_name(kind), (unsigned long long)(rep.failures + rep.edge_ties), occ_diff, n);
+                ray_kind_name(kind), (unsigned long long)rep.failures + rep.edge_ties, occ_diff, n);
   }
   const fmt::Ray down =
       ray_from_bits({0xc034332c, 0x415fd89a, 0xc09e1f07, 0x00000000, 0x00000000, 0xbf800000, 0xa5800000, 0x4171c52b});

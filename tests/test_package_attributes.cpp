@@ -168,7 +168,7 @@ void check_shading_ray_by_ray(const Scene& s, const std::string& path, bool norm
       }
       // Inverse transpose by cofactors of the 3x3 part (sign and scale drop out in the normalization).
       const auto& M = in.transform.m;
-      auto e = [&](int r_, int c_) { return double(M[size_t(4 * r_ + c_)]); };
+      auto e = [&](int r_, int c_) { return double(M[4 * size_t(r_) + size_t(c_)]); };
       double cof[3][3];
       for (int r_ = 0; r_ < 3; ++r_)
         for (int c_ = 0; c_ < 3; ++c_)
@@ -210,7 +210,7 @@ std::vector<std::array<Corner, 3>> world_corners(const Scene& s) {
   for (const Instance& in : s.instances) {
     const Mesh& m = s.meshes[in.mesh];
     const auto& M = in.transform.m;
-    auto e = [&](int r, int c) { return double(M[size_t(4 * r + c)]); };
+    auto e = [&](int r, int c) { return double(M[4 * size_t(r) + size_t(c)]); };
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       std::array<Corner, 3> tri{};
       for (int k = 0; k < 3; ++k) {

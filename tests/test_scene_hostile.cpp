@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -54,11 +55,11 @@ std::pair<std::string, ExitCode> import_error(const std::string& path) {
 // A .gltf whose buffers are given explicitly (buffer 0: the builder's data as a data URI). Pass
 // nlohmann::json::array({...}): a braced {one_json} is that json itself under clang (CWG 2137), an
 // array of it under GCC.
-std::string write_with_buffers(GltfBuilder& b, nlohmann::json extra_buffers, const fs::path& p) {
+std::string write_with_buffers(GltfBuilder& b, const nlohmann::json& extra_buffers, const fs::path& p) {
   nlohmann::json d = b.j;
   d["buffers"] =
       nlohmann::json::array({{{"byteLength", b.bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(b.bin)}}});
-  for (auto& x : extra_buffers) d["buffers"].push_back(x);
+  for (const auto& x : extra_buffers) d["buffers"].push_back(x);
   std::ofstream(p, std::ios::binary) << d.dump();
   return p.string();
 }
@@ -298,7 +299,7 @@ class HostileMetadata : public HostileGltf {
       ASSERT_NE(cams, std::string::npos) << s;
       const size_t at = s.find(from, cams);
       ASSERT_NE(at, std::string::npos) << s;
-      std::memcpy(text + at, to.data(), to.size());
+      std::copy(to.begin(), to.end(), text + at);  // in place, same length: no terminator
       done = true;
     });
     ASSERT_TRUE(done);

@@ -173,13 +173,14 @@ void walk_json(const nlohmann::json& nodes, int n, const std::array<double, 16>&
                          2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
                          2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};  // column-major
     for (int c = 0; c < 3; ++c)
-      for (int rr = 0; rr < 3; ++rr) local[size_t(c * 4 + rr)] = r[c * 3 + rr] * s[size_t(c)];
-    for (int rr = 0; rr < 3; ++rr) local[size_t(12 + rr)] = t[size_t(rr)];
+      for (int rr = 0; rr < 3; ++rr) local[4 * size_t(c) + size_t(rr)] = r[c * 3 + rr] * s[size_t(c)];
+    for (int rr = 0; rr < 3; ++rr) local[12 + size_t(rr)] = t[size_t(rr)];
   }
   std::array<double, 16> g{};
   for (int c = 0; c < 4; ++c)
     for (int rr = 0; rr < 4; ++rr)
-      for (int k = 0; k < 4; ++k) g[size_t(c * 4 + rr)] += parent[size_t(k * 4 + rr)] * local[size_t(c * 4 + k)];
+      for (int k = 0; k < 4; ++k)
+        g[4 * size_t(c) + size_t(rr)] += parent[4 * size_t(k) + size_t(rr)] * local[4 * size_t(c) + size_t(k)];
   if (node.contains("mesh")) out.push_back({n, g});
   for (const auto& c : node.value("children", std::vector<int>{})) walk_json(nodes, c, g, out);
 }

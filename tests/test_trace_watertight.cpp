@@ -43,6 +43,7 @@ void check_no_leaks(const Mesh& m, double scale, std::array<double, 3> centre, b
 
   // Targets in world space (double), rounded once.
   std::vector<std::array<double, 3>> targets;
+  targets.reserve(verts.size() + edges.size());
   auto world = [&](const std::array<double, 3>& p) { return apply(place, p); };
   for (const auto& v : verts) targets.push_back(world({v[0], v[1], v[2]}));
   for (const auto& e : edges) {

@@ -158,6 +158,7 @@ TEST(VoxelDag, PoolSharingAndDeterminism) {
     grids.push_back(random_grid(rng, R, std::ldexp(1.0, -int(2 + rng.below(8))), int(rng.below(3)), rng.below(2) == 0));
   }
   std::vector<LocalDag> dags;
+  dags.reserve(grids.size());
   for (const Grid& g : grids) dags.push_back(build_dag(g));
   DagPool pool, again;
   std::vector<uint32_t> roots;

@@ -38,7 +38,7 @@ inline CLI::Validator finite_range(double lo, double hi) {
 inline CLI::Validator unsigned_integer() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        const std::string expected = "expected an integer from 0 to 18446744073709551615, got '" + text + "'";
+        std::string expected = "expected an integer from 0 to 18446744073709551615, got '" + text + "'";
         if (text.empty() || text.size() > 20 || text.find_first_not_of("0123456789") != std::string::npos) return expected;
         if (text.size() == 20 && text > "18446744073709551615") return expected;
         return {};

@@ -219,7 +219,7 @@ json matrix_node(const std::string& name, const D3& t, const D4& q, const D3& s)
   const rtp::Mat4d m = rtp::Mat4d::from_trs(t.data(), q.data(), s.data());
   std::array<double, 16> cm{};
   for (int c = 0; c < 4; ++c)
-    for (int r = 0; r < 4; ++r) cm[size_t(c * 4 + r)] = m(r, c);
+    for (int r = 0; r < 4; ++r) cm[4 * size_t(c) + size_t(r)] = m(r, c);
   return {{"name", name}, {"matrix", cm}};
 }
 

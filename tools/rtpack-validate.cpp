@@ -316,7 +316,7 @@ int main(int argc, char** argv) {
       }
       if (!json)
         std::fprintf(stderr, "  %-8s %zu rays traced out of core (%llu chunks loaded)\n", kind.c_str(), rays.size(),
-                     (unsigned long long)(a.cache.loads + b.cache.loads));
+                     (unsigned long long)a.cache.loads + b.cache.loads);
       results.push_back(std::move(kr));
     }
     uint64_t failures = 0;

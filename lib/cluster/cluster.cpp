@@ -214,7 +214,7 @@ size_t split_objects(std::vector<Object>& objs, std::vector<Object>& scratch, si
       wa += w[size_t(k)];
       na += n[size_t(k)];
       if (na == 0 || na == e - b) continue;
-      const double cost = acc.surface_area() * double(wa) + right_cost[size_t(k + 1)];
+      const double cost = acc.surface_area() * double(wa) + right_cost[size_t(k) + 1];
       if (cost < best_cost) {
         best_cost = cost;
         best_axis = axis;

@@ -189,7 +189,10 @@ BvhShape walk(const fmt::WideNode<W>* nodes, uint64_t nn, uint32_t root, uint32_
   BvhShape s;
   BvhCheck* chk = ck && ck->problems ? ck : nullptr;
   if (root == ChildRef::kEmpty) return s;
-  auto cost = [cost_block](uint64_t n) { return double((n + cost_block - 1) / cost_block); };
+  auto cost = [cost_block](uint64_t n) {
+    const uint64_t blocks = (n + cost_block - 1) / cost_block;  // whole blocks: the division rounds up
+    return double(blocks);
+  };
   if (ChildRef::is_leaf(root)) {
     Box3d contents;
     const LeafCount c = leaf(root, nullptr, kNone, 0, contents);

@@ -28,6 +28,7 @@ Mesh make_tetrahedron() {
 
 Mesh make_cube(double h) {
   std::vector<Vec3f> p;
+  p.reserve(8);
   for (int i = 0; i < 8; ++i) p.push_back({float(i & 1 ? h : -h), float(i & 2 ? h : -h), float(i & 4 ? h : -h)});
   // Faces as quads (CCW seen from outside), two triangles each.
   const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
@@ -65,6 +66,7 @@ Mesh make_icosphere(int subdivisions) {
     idx = std::move(next);
   }
   std::vector<Vec3f> pf;
+  pf.reserve(p.size());
   for (const Vec3d& v : p) pf.push_back({float(v.x), float(v.y), float(v.z)});
   return finish("icosphere", std::move(pf), std::move(idx));
 }

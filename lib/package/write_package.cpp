@@ -482,7 +482,7 @@ ConvertReport write_t(const Scene& scene, const Plan& plan, const std::string& p
     }
   };
   // Ordered pipeline: ids in order -> build + compress in parallel -> append in order.
-  const size_t tokens = size_t(2 * tbb::this_task_arena::max_concurrency());
+  const size_t tokens = 2 * size_t(tbb::this_task_arena::max_concurrency());
   tbb::parallel_pipeline(
       tokens, tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& fc) -> uint64_t {
                 if (next == n_seg + n_pts) {

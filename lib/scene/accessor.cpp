@@ -86,7 +86,7 @@ Span span_of(const tinygltf::Model& m, int view, size_t offset, size_t count, si
   const auto& data = m.buffers[size_t(bv.buffer)].data;
   const size_t stride = (use_stride && bv.byteStride) ? bv.byteStride : elem;
   const unsigned __int128 end = (unsigned __int128)bv.byteOffset + offset + (unsigned __int128)(count - 1) * stride + elem;
-  if (count == 0 || end > (unsigned __int128)(bv.byteOffset + bv.byteLength) || end > data.size() || stride < elem)
+  if (count == 0 || end > (unsigned __int128)bv.byteOffset + bv.byteLength || end > data.size() || stride < elem)
     fail_invalid(ptr + ": data overruns bufferView " + to_string(view) + " (" + to_string(bv.byteLength) + " bytes)");
   return {data.data() + bv.byteOffset + offset, stride};
 }

@@ -61,6 +61,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
   std::map<uint32_t, uint32_t> used;
   for (const Instance& inst : scene.instances) used.emplace(inst.mesh, 0);
   std::vector<uint32_t> order;
+  order.reserve(used.size());
   for (auto& [g, _] : used) order.push_back(g);
   std::vector<Mesh> built(order.size());
   std::vector<std::vector<std::string>> mesh_warnings(order.size());

@@ -161,7 +161,7 @@ fs::path confined_path(const std::string& uri, const std::string& ptr, const fs:
   if (decoded.find('\0') != std::string::npos) fail_invalid(ptr + "/uri: contains a NUL byte");
   std::error_code ec;
   const fs::path joined = fs::path(decoded).is_absolute() ? fs::path(decoded) : base_dir / fs::path(decoded);
-  const fs::path target = fs::weakly_canonical(joined, ec);
+  fs::path target = fs::weakly_canonical(joined, ec);
   if (!ec)
     for (const fs::path& root : roots) {
       const fs::path rel = target.lexically_relative(root);
@@ -171,6 +171,57 @@ fs::path confined_path(const std::string& uri, const std::string& ptr, const fs:
   for (const fs::path& r : roots) allowed += (allowed.empty() ? "" : ", ") + r.string();
   fail_invalid(ptr + "/uri: '" + uri + "' resolves to " + (ec ? decoded : target.string()) +
                ", outside the glTF's directory (allowed: " + allowed + "; widen with --allow-path DIR)");
+}
+
+// The glTF container: .glb (by magic, whatever the extension) or JSON text. A .glb's header and chunk
+// headers are checked against the file size before any chunk body is read. Returns whether it is a .glb.
+bool read_container(int fd, const std::string& path, uint64_t file_size, std::string& json_text,
+                    std::vector<unsigned char>& bin_data, bool& has_bin) {
+  char head[12] = {};
+  read_exact(fd, 0, head, size_t(std::min<uint64_t>(file_size, 12)), path);
+  const bool is_glb = file_size >= 4 && read_u32(head) == kGlbMagic;
+  if (is_glb) {
+    if (file_size < 20) fail_invalid("truncated file: " + std::to_string(file_size) + " bytes is too short for a .glb header");
+    const uint32_t version = read_u32(head + 4), length = read_u32(head + 8);
+    if (version != 2) fail_invalid(".glb container version " + std::to_string(version) + " is not supported (need 2)");
+    if (length > file_size)
+      fail_invalid("truncated file: .glb header declares " + std::to_string(length) + " bytes but the file has " +
+                   std::to_string(file_size));
+    uint64_t off = 12;
+    int chunk = 0;
+    while (off < length) {
+      if (off + 8 > length)
+        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
+      char ch[8];
+      read_exact(fd, off, ch, 8, path);
+      const uint64_t clen = read_u32(ch), ctype = read_u32(ch + 4);
+      if (off + 8 + clen > length)
+        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " (" + std::to_string(clen) + " bytes at byte " +
+                     std::to_string(off + 8) + ") extends past the end of the data (" + std::to_string(length) + " bytes)");
+      if (chunk == 0 && ctype != kChunkJson) fail_invalid(".glb: the first chunk is not JSON");
+      // Only the JSON and BIN chunks are read; others are skipped.
+      if (chunk == 0) {
+        json_text.resize(size_t(clen));
+        read_exact(fd, off + 8, json_text.data(), json_text.size(), path);
+      } else if (chunk == 1 && ctype == kChunkBin) {
+        bin_data.resize(size_t(clen));
+        read_exact(fd, off + 8, bin_data.data(), bin_data.size(), path);
+        has_bin = true;
+      }
+      off += 8 + ((clen + 3) & ~uint64_t(3));
+      ++chunk;
+    }
+    if (chunk == 0) fail_invalid(".glb has no JSON chunk");
+  } else {
+    char text_head[64] = {};
+    const size_t n = size_t(std::min<uint64_t>(file_size, sizeof text_head));
+    read_exact(fd, 0, text_head, n, path);
+    if (const std::string foreign = foreign_format_message(std::string_view(text_head, n)); !foreign.empty())
+      fail_invalid(foreign);
+    json_text.resize(size_t(file_size));
+    read_exact(fd, 0, json_text.data(), json_text.size(), path);
+  }
+  return is_glb;
 }
 
 }  // namespace
@@ -188,55 +239,10 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
     fail_invalid("file is " + std::to_string(file_size) +
                  " bytes: glTF/.glb files of 4 GiB or more are not supported (the .glb length field is 32-bit)");
 
-  // Container: .glb (by magic, whatever the extension) or JSON text. A .glb's header and chunk
-  // headers are checked against the file size before any chunk body is read.
   std::string json_text;
   std::vector<unsigned char> bin_data;
   bool has_bin = false;
-  char head[12] = {};
-  read_exact(in.fd, 0, head, size_t(std::min<uint64_t>(file_size, 12)), path);
-  const bool is_glb = file_size >= 4 && read_u32(head) == kGlbMagic;
-  if (is_glb) {
-    if (file_size < 20) fail_invalid("truncated file: " + std::to_string(file_size) + " bytes is too short for a .glb header");
-    const uint32_t version = read_u32(head + 4), length = read_u32(head + 8);
-    if (version != 2) fail_invalid(".glb container version " + std::to_string(version) + " is not supported (need 2)");
-    if (length > file_size)
-      fail_invalid("truncated file: .glb header declares " + std::to_string(length) + " bytes but the file has " +
-                   std::to_string(file_size));
-    uint64_t off = 12;
-    int chunk = 0;
-    while (off < length) {
-      if (off + 8 > length)
-        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " header at byte " + std::to_string(off) + " is cut off");
-      char ch[8];
-      read_exact(in.fd, off, ch, 8, path);
-      const uint64_t clen = read_u32(ch), ctype = read_u32(ch + 4);
-      if (off + 8 + clen > length)
-        fail_invalid("truncated file: chunk " + std::to_string(chunk) + " (" + std::to_string(clen) + " bytes at byte " +
-                     std::to_string(off + 8) + ") extends past the end of the data (" + std::to_string(length) + " bytes)");
-      if (chunk == 0 && ctype != kChunkJson) fail_invalid(".glb: the first chunk is not JSON");
-      // Only the JSON and BIN chunks are read; others are skipped.
-      if (chunk == 0) {
-        json_text.resize(size_t(clen));
-        read_exact(in.fd, off + 8, json_text.data(), json_text.size(), path);
-      } else if (chunk == 1 && ctype == kChunkBin) {
-        bin_data.resize(size_t(clen));
-        read_exact(in.fd, off + 8, bin_data.data(), bin_data.size(), path);
-        has_bin = true;
-      }
-      off += 8 + ((clen + 3) & ~uint64_t(3));
-      ++chunk;
-    }
-    if (chunk == 0) fail_invalid(".glb has no JSON chunk");
-  } else {
-    char text_head[64] = {};
-    const size_t n = size_t(std::min<uint64_t>(file_size, sizeof text_head));
-    read_exact(in.fd, 0, text_head, n, path);
-    if (const std::string foreign = foreign_format_message(std::string_view(text_head, n)); !foreign.empty())
-      fail_invalid(foreign);
-    json_text.resize(size_t(file_size));
-    read_exact(in.fd, 0, json_text.data(), json_text.size(), path);
-  }
+  const bool is_glb = read_container(in.fd, path, file_size, json_text, bin_data, has_bin);
   const unsigned char* bin = has_bin ? bin_data.data() : nullptr;
   const size_t bin_size = bin_data.size();
 

@@ -79,7 +79,7 @@ void add_camera(const Document& doc, int node, const Mat4d& global, Scene& out) 
 
 // The JSON pointer of the property that defines node `node`'s local transform.
 std::string transform_pointer(const Document& doc, int node) {
-  const std::string np = "/nodes/" + to_string(node);
+  std::string np = "/nodes/" + to_string(node);
   const tinygltf::Node& n = doc.model.nodes[size_t(node)];
   if (n.matrix.size() == 16) return np + "/matrix";
   if (!n.scale.empty()) return np + "/scale";

@@ -192,7 +192,7 @@ class InCoreTracer final : public PackageTracer {
     uint64_t n_grids = 0;
     grids_ = dv.get<fmt::DagGrid>(fmt::SectionType::kPointGrids, n_grids, false);
     if (!grids_) return;
-    const std::string desc_label = dv.label();
+    const std::string& desc_label = dv.label();
     if (n_grids != n_points)
       fail_invalid(desc_label + ": " + std::to_string(n_grids) + " culling grids for " + std::to_string(n_points) +
                    " batching points");

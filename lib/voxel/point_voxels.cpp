@@ -101,7 +101,8 @@ void world_box(const Effective& e, const Vec3d& lo, const Vec3d& hi, double grow
 // the rounding of either, which the pad covers — relative 10^-9 of every magnitude that enters the
 // sums (double rounding is 2^-52 per operation; a few dozen operations).
 void mark_instance_cells(Grid& g, const Effective& e, const MeshProxies::Proxy& p, const MeshProxies::Level& lv) {
-  const double inv = 1 / g.cell, lc = p.cell * (kLocalRes / lv.r), r = double(g.resolution);
+  const uint32_t ratio = kLocalRes / lv.r;  // exact: a level's resolution divides kLocalRes
+  const double inv = 1 / g.cell, lc = p.cell * ratio, r = double(g.resolution);
   double q0[3], step[3][3], E[3];
   for (int row = 0; row < 3; ++row) {
     const double b = (e.minv[4 * row + 3] - g.origin[row]) * inv;

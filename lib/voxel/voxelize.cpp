@@ -156,6 +156,61 @@ void Grid::mark_cells(const int f[3], const int l[3]) {
   }
 }
 
+namespace {
+
+// The fast path of voxelize_triangle where the grown bounding box meets one row of cells (runs <= 1
+// axes longer than a cell; `longer` the axis, or -1). Returns false when the triangle leaves the row's
+// cross section (the caller's tests decide then).
+bool set_single_row(Grid& g, const double org[3], double cell, double margin, const double lo[3], const double hi[3],
+                    const int f[3], const int l[3], int longer) {
+  // The grown bounding box meets one row of cells: when the triangle lies within the grown cross
+  // section of that row, it is connected and its projection on the row's axis covers every cell of
+  // the row (each within `margin`), so it touches all of them and no other. Most triangles of a
+  // scan at the chosen resolution end here.
+  bool inside = true;
+  for (int k = 0; k < 3; ++k) {
+    if (k == longer) continue;
+    const double c0 = org[k] + f[k] * cell;
+    inside = inside && lo[k] + margin >= c0 - margin && hi[k] - margin <= c0 + cell + margin;
+  }
+  if (!inside) return false;
+  const int k = longer < 0 ? 0 : longer;
+  uint32_t c[3] = {uint32_t(f[0]), uint32_t(f[1]), uint32_t(f[2])};
+  for (int i = f[k]; i <= l[k]; ++i) {
+    c[k] = uint32_t(i);
+    g.set(c[0], c[1], c[2]);
+  }
+  return true;
+}
+
+// voxelize_triangle's small boxes: every cell tested by the AVX2 rows kernel, then the cells gathered
+// per 4^3 block and each block's bits stored once.
+void or_small_box(Grid& g, const detail::CellTests& t, const int f[3], const int l[3]) {
+  uint8_t masks[detail::kRowsMaxCells];
+  detail::row_masks_avx2(t, masks);
+  // The cells gathered per 4^3 block of the box (at most 3 along x: 8 cells from any offset) and
+  // each block's bits stored once: a box across block faces was a brick lookup per cell. A row's
+  // mask shifted by the box's x offset in its first block holds 4 cells per block, lowest first.
+  const int bx0 = f[0] >> 2, by0 = f[1] >> 2, bz0 = f[2] >> 2;
+  const int nbx = (l[0] >> 2) - bx0 + 1, nby = (l[1] >> 2) - by0 + 1, nbz = (l[2] >> 2) - bz0 + 1;
+  constexpr int kMaxBlocks = 20;  // the most blocks a box of <= 64 cells, <= 8 along x, meets (2 x 2 x 16 at offset 3)
+  uint64_t bits[kMaxBlocks];
+  const int blocks = nbx * nby * nbz;
+  for (int i = 0; i < blocks; ++i) bits[i] = 0;
+  for (int z = f[2], r = 0; z <= l[2]; ++z)
+    for (int y = f[1]; y <= l[1]; ++y, ++r) {
+      const uint32_t m = uint32_t(masks[r]) << (f[0] & 3);
+      if (!m) continue;
+      const int shift = 4 * (y & 3) + 16 * (z & 3);
+      uint64_t* row = bits + nbx * (((y >> 2) - by0) + nby * ((z >> 2) - bz0));
+      for (int i = 0; i < nbx; ++i) row[i] |= uint64_t((m >> (4 * i)) & 0xFu) << shift;
+    }
+  for (int i = 0; i < blocks; ++i)
+    if (bits[i]) g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
+}
+
+}  // namespace
+
 // Schwarz & Seidel 2010 §3.1: a triangle overlaps a box (corner p, size dp) iff their bounding boxes
 // overlap, the plane separates the box's critical corners, and in each of the xy, yz, zx projections
 // the critical corner of the box lies inside every edge function. The box here is the cell grown by
@@ -193,27 +248,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
     while (l[k] > f[k] && org[k] + l[k] * cell > hi[k]) --l[k];
     if (l[k] > f[k]) longer = k, ++runs;
   }
-  if (runs <= 1) {
-    // The grown bounding box meets one row of cells: when the triangle lies within the grown cross
-    // section of that row, it is connected and its projection on the row's axis covers every cell of
-    // the row (each within `margin`), so it touches all of them and no other. Most triangles of a
-    // scan at the chosen resolution end here.
-    bool inside = true;
-    for (int k = 0; k < 3; ++k) {
-      if (k == longer) continue;
-      const double c0 = org[k] + f[k] * cell;
-      inside = inside && lo[k] + margin >= c0 - margin && hi[k] - margin <= c0 + cell + margin;
-    }
-    if (inside) {
-      const int k = longer < 0 ? 0 : longer;
-      uint32_t c[3] = {uint32_t(f[0]), uint32_t(f[1]), uint32_t(f[2])};
-      for (int i = f[k]; i <= l[k]; ++i) {
-        c[k] = uint32_t(i);
-        g.set(c[0], c[1], c[2]);
-      }
-      return;
-    }
-  }
+  if (runs <= 1 && set_single_row(g, org, cell, margin, lo, hi, f, l, longer)) return;
   // Every cell the triangle could set is set already (neighbouring triangles of a dense mesh share
   // their cells: about a quarter of the bunny's at 128^3): nothing to test.
   if (all_cells_set(g, f, l)) return;
@@ -252,27 +287,7 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
       t.f[k] = f[k], t.l[k] = l[k];
     }
     t.cell = cell, t.margin = margin, t.dp = dp;
-    uint8_t masks[detail::kRowsMaxCells];
-    detail::row_masks_avx2(t, masks);
-    // The cells gathered per 4^3 block of the box (at most 3 along x: 8 cells from any offset) and
-    // each block's bits stored once: a box across block faces was a brick lookup per cell. A row's
-    // mask shifted by the box's x offset in its first block holds 4 cells per block, lowest first.
-    const int bx0 = f[0] >> 2, by0 = f[1] >> 2, bz0 = f[2] >> 2;
-    const int nbx = (l[0] >> 2) - bx0 + 1, nby = (l[1] >> 2) - by0 + 1, nbz = (l[2] >> 2) - bz0 + 1;
-    constexpr int kMaxBlocks = 20;  // the most blocks a box of <= 64 cells, <= 8 along x, meets (2 x 2 x 16 at offset 3)
-    uint64_t bits[kMaxBlocks];
-    const int blocks = nbx * nby * nbz;
-    for (int i = 0; i < blocks; ++i) bits[i] = 0;
-    for (int z = f[2], r = 0; z <= l[2]; ++z)
-      for (int y = f[1]; y <= l[1]; ++y, ++r) {
-        const uint32_t m = uint32_t(masks[r]) << (f[0] & 3);
-        if (!m) continue;
-        const int shift = 4 * (y & 3) + 16 * (z & 3);
-        uint64_t* row = bits + nbx * (((y >> 2) - by0) + nby * ((z >> 2) - bz0));
-        for (int i = 0; i < nbx; ++i) row[i] |= uint64_t((m >> (4 * i)) & 0xFu) << shift;
-      }
-    for (int i = 0; i < blocks; ++i)
-      if (bits[i]) g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
+    or_small_box(g, t, f, l);
     return;
   }
   // Schwarz & Seidel 2010 §3.1, by columns of the dominant projection: the plane (a, b) whose third
