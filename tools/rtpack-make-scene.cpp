@@ -363,7 +363,8 @@ Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const 
     const SourceMesh& m = meshes[mi];
     const double jx = (uniform(rng) - 0.5) * 0.5 * o.spacing, jz = (uniform(rng) - 0.5) * 0.5 * o.spacing;
     const double yaw = uniform(rng) * 2 * kPi, sc = 0.5 + uniform(rng);
-    const double x = (double(k % grid) - half) * o.spacing + jx, z = (double(k / grid) - half) * o.spacing + jz;
+    const uint64_t row = k / grid, column = k % grid;  // the instance's cell on the grid
+    const double x = (double(column) - half) * o.spacing + jx, z = (double(row) - half) * o.spacing + jz;
     // The node scales by m.norm, so translations are divided by it; y puts the mesh on the ground.
     Attributes& a = attrs[mi];
     a.t.insert(a.t.end(), {float(x / m.norm), float(-double(m.lo.y) * sc), float(z / m.norm)});

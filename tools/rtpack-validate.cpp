@@ -150,236 +150,297 @@ rtp::Scene source_scene(const rtp::PackageReader& reader, const std::string& sou
   return scene;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"rtpack-validate: trace test rays through a package out of core and check every answer"};
-  rtp::tools::add_version_flag(app, "rtpack-validate");
+// The command line, as parsed.
+struct Args {
   std::string package, source, budget_text = "25%", kinds_text;
   std::vector<std::string> allow;
   size_t per_kind = 10000;
   uint64_t seed = 1;
   int threads = 0;
   bool json = false, no_cull = false;
-  app.add_option("package", package, "the .rtp package")->required();
-  app.add_option("--source", source,
+  CLI::Option* kinds_opt = nullptr;   // given: an empty --kinds is refused, not the default
+  CLI::Option* budget_opt = nullptr;  // not given: the default budget is raised to the package's minimum
+};
+
+void add_options(CLI::App& app, Args& a) {
+  app.add_option("package", a.package, "the .rtp package")->required();
+  app.add_option("--source", a.source,
                  "the glTF the package was converted from: answers are checked against Embree "
                  "(ROBUST) on it; without it, against the in-core tracer (byte for byte)");
-  app.add_option("--allow-path", allow, "also read the source's external buffers from DIR (as rtpack-convert)");
-  app.add_option("--rays", per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
-  CLI::Option* kinds_opt =
-      app.add_option("--kinds", kinds_text, "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
-  app.add_option("--memory-budget", budget_text,
-                 "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
-                 "a percentage of the package's on-demand bytes (default 25%, raised to the "
-                 "package's minimum)");
-  app.add_option("--seed", seed, "ray seed (default 1)")->check(rtp::tools::unsigned_integer());
-  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
-  app.add_flag("--no-cull", no_cull, "do not cull with the batching points' DAGs");
-  app.add_flag("--json", json, "print the table as JSON on stdout");
+  app.add_option("--allow-path", a.allow, "also read the source's external buffers from DIR (as rtpack-convert)");
+  app.add_option("--rays", a.per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
+  a.kinds_opt = app.add_option("--kinds", a.kinds_text,
+                               "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
+  a.budget_opt = app.add_option("--memory-budget", a.budget_text,
+                                "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
+                                "a percentage of the package's on-demand bytes (default 25%, raised to the "
+                                "package's minimum)");
+  app.add_option("--seed", a.seed, "ray seed (default 1)")->check(rtp::tools::unsigned_integer());
+  app.add_option("--threads", a.threads, "worker threads (default: all cores)")->check(rtp::tools::positive());
+  app.add_flag("--no-cull", a.no_cull, "do not cull with the batching points' DAGs");
+  app.add_flag("--json", a.json, "print the table as JSON on stdout");
+}
+
+// The ray kinds to check: --kinds, or by default every kind the reference can judge.
+std::vector<std::string> ray_kinds(const Args& a, bool embree) {
+  if (a.kinds_opt->count() > 0 && a.kinds_text.empty())
+    throw rtp::Error(rtp::ExitCode::kUsage,
+                     "--kinds: empty; name at least one ray kind, or leave the option out for the default");
+  std::vector<std::string> kinds;
+  if (a.kinds_text.empty()) {
+    if (!embree) return {"primary", "random", "shadow"};
+    for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
+    return kinds;
+  }
+  for (size_t i = 0; i <= a.kinds_text.size();) {
+    const size_t j = std::min(a.kinds_text.find(',', i), a.kinds_text.size());
+    kinds.push_back(a.kinds_text.substr(i, j - i));
+    i = j + 1;
+  }
+  for (const std::string& k : kinds) {
+    const bool known = embree ? rtp::parse_ray_kind(k).has_value() : (k == "primary" || k == "random" || k == "shadow");
+    if (!known)
+      throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: '" + k + "' is not a ray kind" +
+                                                  (embree ? " (primary, random, bounce, shadow, inside, short)"
+                                                          : " without --source (primary, random, shadow)"));
+  }
+  return kinds;
+}
+
+// A scene without triangles converts to a valid, empty package: nothing to validate, and that is no failure.
+int report_empty(const Args& a) {
+  const char* why = "the package holds no triangles: no ray can hit anything, nothing to validate";
+  if (a.json) {
+    nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
+    j["package"] = rtp::utf8_display(a.package);
+    j["kinds"] = nlohmann::json::array();
+    j["failures"] = 0;
+    j["ok"] = true;
+    j["note"] = why;
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf("%s\n", why);
+  }
+  return 0;
+}
+
+// The references the package's answers are checked against: Embree on the source with a double judge of
+// disagreements (--source), or the in-core tracer.
+struct References {
+  rtp::Scene scene;
+  std::unique_ptr<rtp::EmbreeOracle> oracle;
+  std::unique_ptr<rtp::ExactReference> exact;
+  std::unique_ptr<rtp::Tracer> in_core;
+};
+
+References open_references(const rtp::PackageReader& reader, const Args& a) {
+  References refs;
+  if (a.source.empty()) {
+    refs.in_core = rtp::open_tracer(reader);
+    return refs;
+  }
+  refs.scene = source_scene(reader, a.source, a.allow);
+  refs.oracle = std::make_unique<rtp::EmbreeOracle>(refs.scene, rtp::OracleQuality::kMedium);
+  const uint64_t tris = refs.scene.instanced_triangles();
+  // Above kExactLimit the instance-wise judge: nothing flattened, the same answers, slower per ray.
+  if (tris <= kExactLimit)
+    refs.exact = std::make_unique<rtp::BruteForceReference>(refs.scene, kExactLimit);
+  else
+    refs.exact = std::make_unique<rtp::InstanceReference>(refs.scene);
+  if (!a.json)
+    std::fprintf(stderr, "judge of disagreements: %s (%llu instanced triangles)\n",
+                 tris <= kExactLimit ? "a double brute-force reference from the glTF's own values"
+                                     : "a double reference from the glTF's own values, instance by instance",
+                 (unsigned long long)tris);
+  return refs;
+}
+
+void accumulate(rtp::OutOfCoreStats& total, const rtp::OutOfCoreStats& s) {
+  total.rays += s.rays;
+  total.point_visits += s.point_visits;
+  total.culled_visits += s.culled_visits;
+  total.rounds += s.rounds;
+  total.cache.loads += s.cache.loads;
+  total.cache.requests += s.cache.requests;
+  total.cache.hits += s.cache.hits;
+  total.cache.bytes_read += s.cache.bytes_read;
+  total.cache.peak_resident_bytes = std::max(total.cache.peak_resident_bytes, s.cache.peak_resident_bytes);
+  total.peak_resident_bytes = std::max(total.peak_resident_bytes, s.peak_resident_bytes);
+  total.total_seconds += s.total_seconds;
+}
+
+// Without --source: the out-of-core answers must be the in-core tracer's, byte for byte.
+void compare_with_in_core(rtp::Tracer& in_core, const std::vector<Ray>& rays, const std::vector<Hit>& got,
+                          const std::vector<uint8_t>& occ, const rtp::PackageTraceOptions& opt, KindResult& kr) {
+  std::vector<Hit> ref(rays.size());
+  in_core.closest(rays.data(), ref.data(), rays.size(), opt);
+  std::vector<uint8_t> ref_occ(rays.size());
+  in_core.any(rays.data(), ref_occ.data(), rays.size(), opt);
+  kr.closest.rays = rays.size();
+  const size_t max_examples = rtp::CompareOptions{}.max_examples;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (std::memcmp(&ref[i], &got[i], sizeof(Hit)) == 0) {
+      ++(got[i].t < INFINITY ? kr.closest.both_hit : kr.closest.both_miss);
+      continue;
+    }
+    ++kr.closest.failures;
+    if (kr.closest.first_failures.size() < max_examples)
+      kr.closest.first_failures.push_back({i, rtp::Verdict::kFail, rays[i], ref[i], got[i]});
+  }
+  for (size_t i = 0; i < rays.size(); ++i) kr.any_differ += occ[i] != ref_occ[i];
+  kr.any.rays = rays.size();
+  kr.any.failures = kr.any_differ;
+}
+
+// One ray kind: its rays traced out of core (closest and any hit) and every answer checked.
+KindResult check_kind(const rtp::PackageReader& reader, rtp::Tracer& ooc, References& refs, const Args& a,
+                      const std::string& kind, const rtp::PackageTraceOptions& opt, rtp::OutOfCoreStats& total) {
+  std::vector<Ray> rays;
+  if (refs.oracle) {
+    rtp::RayGenOptions g;
+    g.seed = a.seed;
+    g.closest = [&](const Ray* r, Hit* h, size_t n) { refs.oracle->closest(r, h, n); };
+    rays = rtp::generate_rays(refs.scene, *rtp::parse_ray_kind(kind), a.per_kind, g);
+  } else {
+    rays = package_rays(reader, *refs.in_core, kind, a.per_kind, a.seed);
+  }
+  std::vector<Hit> got(rays.size());
+  std::vector<uint8_t> occ(rays.size());
+  const rtp::TracerStats closest = ooc.closest(rays.data(), got.data(), rays.size(), opt);
+  const rtp::TracerStats any = ooc.any(rays.data(), occ.data(), rays.size(), opt);
+  accumulate(total, closest);
+  accumulate(total, any);
+  KindResult kr;
+  kr.kind = kind;
+  if (refs.oracle) {
+    std::vector<Hit> ref(rays.size());
+    refs.oracle->closest(rays.data(), ref.data(), rays.size());
+    rtp::CompareOptions co;
+    co.scene = &refs.scene;
+    co.exact = refs.exact.get();
+    const std::vector<uint8_t> skip = rtp::unsupported_mask(rays.data(), rays.size());
+    kr.closest = rtp::compare_closest(rays.data(), ref.data(), got.data(), rays.size(), co, skip.data());
+    kr.any = rtp::check_any_hit(rays.data(), ref.data(), occ.data(), rays.size(), co, skip.data(), got.data());
+  } else {
+    compare_with_in_core(*refs.in_core, rays, got, occ, opt, kr);
+  }
+  if (!a.json)
+    std::fprintf(stderr, "  %-8s %zu rays traced out of core (%llu chunks loaded)\n", kind.c_str(), rays.size(),
+                 (unsigned long long)closest.cache.loads + any.cache.loads);
+  return kr;
+}
+
+// The budget the out-of-core tracer ran under, and the package's figures it was chosen from.
+struct Budget {
+  uint64_t budget = 0, minimum = 0, on_demand = 0;
+};
+
+nlohmann::json report_json(const Args& a, const std::vector<KindResult>& results, const rtp::OutOfCoreStats& total,
+                           const Budget& b, uint64_t failures) {
+  nlohmann::json jk = nlohmann::json::array();
+  for (const KindResult& k : results) {
+    nlohmann::json ex = nlohmann::json::array();
+    for (const rtp::RayDiff& d : k.closest.first_failures) ex.push_back({{"ray", d.index}, {"what", d.describe()}});
+    jk.push_back({{"kind", k.kind},
+                  {"rays", k.closest.rays},
+                  {"skipped", k.closest.skipped},
+                  {"agree", k.closest.agree()},
+                  {"edge_ties", k.closest.edge_ties},
+                  {"precision_ties", k.closest.precision_ties},
+                  {"reference_errors", k.closest.reference_errors},
+                  {"failures", k.closest.failures},
+                  {"any_hit_failures", k.any.failures},
+                  {"first_failures", ex}});
+  }
+  nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
+  j["package"] = rtp::utf8_display(a.package);
+  j["reference"] = a.source.empty() ? "in_core" : "embree";
+  j["kinds"] = jk;
+  j["out_of_core"] = {{"memory_budget", b.budget},
+                      {"minimum_budget", b.minimum},
+                      {"on_demand_bytes", b.on_demand},
+                      {"rounds", total.rounds},
+                      {"chunks_loaded", total.cache.loads},
+                      {"bytes_read", total.cache.bytes_read},
+                      {"cache_hit_rate", total.cache.hit_rate()},
+                      {"batching_point_visits", total.point_visits},
+                      {"culled_visits", total.culled_visits},
+                      {"peak_cache_bytes", total.cache.peak_resident_bytes},
+                      {"peak_resident_bytes", total.peak_resident_bytes},
+                      {"peak_rss_bytes", uint64_t(rtp::peak_rss_mib() * 1048576.0)},
+                      {"seconds", total.total_seconds}};
+  j["failures"] = failures;
+  j["ok"] = failures == 0;
+  return j;
+}
+
+void print_table(const std::vector<KindResult>& results, const rtp::OutOfCoreStats& total, const Budget& b, uint64_t failures) {
+  std::printf("%-8s %9s %9s %9s %10s %13s %9s %9s\n", "kind", "rays", "agree", "edge ties", "prec. ties", "Embree errors",
+              "failures", "any-hit");
+  for (const KindResult& k : results)
+    std::printf("%-8s %9llu %9llu %9llu %10llu %13llu %9llu %9llu\n", k.kind.c_str(), (unsigned long long)k.closest.rays,
+                (unsigned long long)k.closest.agree(), (unsigned long long)k.closest.edge_ties,
+                (unsigned long long)k.closest.precision_ties, (unsigned long long)k.closest.reference_errors,
+                (unsigned long long)k.closest.failures, (unsigned long long)k.any.failures);
+  std::printf(
+      "out of core: budget %.1f MiB (minimum %.1f, on demand %.1f), %llu chunks loaded, %.1f MiB read, cache hit "
+      "rate %.1f%%, peak cache %.1f MiB, peak resident %.1f MiB, peak RSS %.1f MiB\n",
+      double(b.budget) / 1048576.0, double(b.minimum) / 1048576.0, double(b.on_demand) / 1048576.0,
+      (unsigned long long)total.cache.loads, double(total.cache.bytes_read) / 1048576.0, 100 * total.cache.hit_rate(),
+      double(total.cache.peak_resident_bytes) / 1048576.0, double(total.peak_resident_bytes) / 1048576.0, rtp::peak_rss_mib());
+  for (const KindResult& k : results)
+    for (const rtp::RayDiff& d : k.closest.first_failures)
+      std::printf("FAIL %s ray %zu:\n%s\n", k.kind.c_str(), d.index, d.describe().c_str());
+  std::printf("%s\n", failures ? "FAILED: some answers are wrong" : "ok: every answer agrees with the reference");
+}
+
+int validate(const Args& a) {
+  const rtp::PackageReader reader(a.package);
+  const std::vector<std::string> kinds = ray_kinds(a, !a.source.empty());
+  if (reader.header().unique_triangles == 0) return report_empty(a);
+  Budget b;
+  b.on_demand = rtp::on_demand_bytes(reader);
+  b.minimum = rtp::minimum_budget(reader);
+  b.budget = rtp::parse_memory_budget(a.budget_text, b.on_demand);
+  if (a.budget_opt->count() == 0) b.budget = std::max(b.budget, b.minimum);  // the default never refuses
+  rtp::TracerConfig tc;
+  tc.memory_budget = b.budget;
+  const std::unique_ptr<rtp::Tracer> ooc = rtp::open_tracer(reader, tc);
+  if (!a.json)
+    std::fprintf(stderr, "reference: %s\n", a.source.empty() ? "the in-core tracer" : "Embree ROBUST on the source glTF");
+  References refs = open_references(reader, a);
+  rtp::PackageTraceOptions opt;
+  opt.isa = rtp::detect_isa();
+  opt.cull = !a.no_cull;
+  std::vector<KindResult> results;
+  results.reserve(kinds.size());
+  rtp::OutOfCoreStats total;
+  for (const std::string& kind : kinds) results.push_back(check_kind(reader, *ooc, refs, a, kind, opt, total));
+  uint64_t failures = 0;
+  for (const KindResult& k : results) failures += k.closest.failures + k.any.failures;
+  if (a.json)
+    std::cout << report_json(a, results, total, b, failures).dump(2) << "\n";
+  else
+    print_table(results, total, b, failures);
+  if (failures)
+    return rtp::tools::report_error("rtpack-validate", false, a.package, rtp::ExitCode::kInputInvalid,
+                                    std::to_string(failures) + " rays answered wrongly (rays named above)");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rtpack-validate: trace test rays through a package out of core and check every answer"};
+  rtp::tools::add_version_flag(app, "rtpack-validate");
+  Args a;
+  add_options(app, a);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return rtp::tools::parse_error_exit(app, e, "rtpack-validate", argc, argv);
   }
   std::unique_ptr<tbb::global_control> limit;
-  if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
-  return rtp::tools::run_reporting_errors("rtpack-validate", json, package, [&]() -> int {
-    const rtp::PackageReader reader(package);
-    const bool embree = !source.empty();
-    std::vector<std::string> kinds;
-    if (kinds_opt->count() > 0 && kinds_text.empty())
-      throw rtp::Error(rtp::ExitCode::kUsage,
-                       "--kinds: empty; name at least one ray kind, or leave the option out for the default");
-    if (kinds_text.empty()) {
-      if (embree)
-        for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
-      else
-        kinds = {"primary", "random", "shadow"};
-    } else {
-      for (size_t a = 0; a <= kinds_text.size();) {
-        const size_t b = std::min(kinds_text.find(',', a), kinds_text.size());
-        kinds.push_back(kinds_text.substr(a, b - a));
-        a = b + 1;
-      }
-      for (const std::string& k : kinds) {
-        const bool known = embree ? rtp::parse_ray_kind(k).has_value() : (k == "primary" || k == "random" || k == "shadow");
-        if (!known)
-          throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: '" + k + "' is not a ray kind" +
-                                                      (embree ? " (primary, random, bounce, shadow, inside, short)"
-                                                              : " without --source (primary, random, shadow)"));
-      }
-    }
-    if (reader.header().unique_triangles == 0) {  // a scene without triangles converts to a valid, empty package
-      const char* why = "the package holds no triangles: no ray can hit anything, nothing to validate";
-      if (json) {
-        nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
-        j["package"] = rtp::utf8_display(package);
-        j["kinds"] = nlohmann::json::array();
-        j["failures"] = 0;
-        j["ok"] = true;
-        j["note"] = why;
-        std::cout << j.dump(2) << "\n";
-      } else {
-        std::printf("%s\n", why);
-      }
-      return 0;
-    }
-    const uint64_t on_demand = rtp::on_demand_bytes(reader), minimum = rtp::minimum_budget(reader);
-    uint64_t budget = rtp::parse_memory_budget(budget_text, on_demand);
-    if (app.count("--memory-budget") == 0) budget = std::max(budget, minimum);  // the default never refuses
-    rtp::TracerConfig tc;
-    tc.memory_budget = budget;
-    const std::unique_ptr<rtp::Tracer> ooc = rtp::open_tracer(reader, tc);
-    if (!json) std::fprintf(stderr, "reference: %s\n", embree ? "Embree ROBUST on the source glTF" : "the in-core tracer");
-    rtp::Scene scene;
-    std::unique_ptr<rtp::EmbreeOracle> oracle;
-    std::unique_ptr<rtp::Tracer> in_core;
-    std::unique_ptr<rtp::ExactReference> exact;
-    if (embree) {
-      scene = source_scene(reader, source, allow);
-      oracle = std::make_unique<rtp::EmbreeOracle>(scene, rtp::OracleQuality::kMedium);
-      const uint64_t tris = scene.instanced_triangles();
-      // Above kExactLimit the instance-wise judge: nothing flattened, the same answers, slower per ray.
-      if (tris <= kExactLimit)
-        exact = std::make_unique<rtp::BruteForceReference>(scene, kExactLimit);
-      else
-        exact = std::make_unique<rtp::InstanceReference>(scene);
-      if (!json)
-        std::fprintf(stderr, "judge of disagreements: %s (%llu instanced triangles)\n",
-                     tris <= kExactLimit ? "a double brute-force reference from the glTF's own values"
-                                         : "a double reference from the glTF's own values, instance by instance",
-                     (unsigned long long)tris);
-    } else {
-      in_core = rtp::open_tracer(reader);
-    }
-    rtp::PackageTraceOptions opt;
-    opt.isa = rtp::detect_isa();
-    opt.cull = !no_cull;
-    std::vector<KindResult> results;
-    rtp::OutOfCoreStats total;
-    for (const std::string& kind : kinds) {
-      std::vector<Ray> rays;
-      if (embree) {
-        rtp::RayGenOptions g;
-        g.seed = seed;
-        g.closest = [&](const Ray* r, Hit* h, size_t n) { oracle->closest(r, h, n); };
-        rays = rtp::generate_rays(scene, *rtp::parse_ray_kind(kind), per_kind, g);
-      } else {
-        rays = package_rays(reader, *in_core, kind, per_kind, seed);
-      }
-      std::vector<Hit> got(rays.size()), ref(rays.size());
-      std::vector<uint8_t> occ(rays.size());
-      const rtp::TracerStats a = ooc->closest(rays.data(), got.data(), rays.size(), opt);
-      const rtp::TracerStats b = ooc->any(rays.data(), occ.data(), rays.size(), opt);
-      for (const rtp::OutOfCoreStats* s : {&a, &b}) {
-        total.rays += s->rays;
-        total.point_visits += s->point_visits;
-        total.culled_visits += s->culled_visits;
-        total.rounds += s->rounds;
-        total.cache.loads += s->cache.loads;
-        total.cache.requests += s->cache.requests;
-        total.cache.hits += s->cache.hits;
-        total.cache.bytes_read += s->cache.bytes_read;
-        total.cache.peak_resident_bytes = std::max(total.cache.peak_resident_bytes, s->cache.peak_resident_bytes);
-        total.peak_resident_bytes = std::max(total.peak_resident_bytes, s->peak_resident_bytes);
-        total.total_seconds += s->total_seconds;
-      }
-      KindResult kr;
-      kr.kind = kind;
-      rtp::CompareOptions co;
-      if (embree) {
-        oracle->closest(rays.data(), ref.data(), rays.size());
-        co.scene = &scene;
-        co.exact = exact.get();
-        const std::vector<uint8_t> skip = rtp::unsupported_mask(rays.data(), rays.size());
-        kr.closest = rtp::compare_closest(rays.data(), ref.data(), got.data(), rays.size(), co, skip.data());
-        kr.any = rtp::check_any_hit(rays.data(), ref.data(), occ.data(), rays.size(), co, skip.data(), got.data());
-      } else {
-        in_core->closest(rays.data(), ref.data(), rays.size(), opt);
-        std::vector<uint8_t> ref_occ(rays.size());
-        in_core->any(rays.data(), ref_occ.data(), rays.size(), opt);
-        kr.closest.rays = rays.size();
-        for (size_t i = 0; i < rays.size(); ++i) {
-          const bool same = std::memcmp(&ref[i], &got[i], sizeof(Hit)) == 0;
-          if (same) {
-            ++(got[i].t < INFINITY ? kr.closest.both_hit : kr.closest.both_miss);
-            continue;
-          }
-          ++kr.closest.failures;
-          if (kr.closest.first_failures.size() < co.max_examples)
-            kr.closest.first_failures.push_back({i, rtp::Verdict::kFail, rays[i], ref[i], got[i]});
-        }
-        for (size_t i = 0; i < rays.size(); ++i) kr.any_differ += occ[i] != ref_occ[i];
-        kr.any.rays = rays.size();
-        kr.any.failures = kr.any_differ;
-      }
-      if (!json)
-        std::fprintf(stderr, "  %-8s %zu rays traced out of core (%llu chunks loaded)\n", kind.c_str(), rays.size(),
-                     (unsigned long long)a.cache.loads + b.cache.loads);
-      results.push_back(std::move(kr));
-    }
-    uint64_t failures = 0;
-    nlohmann::json jk = nlohmann::json::array();
-    for (const KindResult& k : results) {
-      failures += k.closest.failures + k.any.failures;
-      nlohmann::json ex = nlohmann::json::array();
-      for (const rtp::RayDiff& d : k.closest.first_failures) ex.push_back({{"ray", d.index}, {"what", d.describe()}});
-      jk.push_back({{"kind", k.kind},
-                    {"rays", k.closest.rays},
-                    {"skipped", k.closest.skipped},
-                    {"agree", k.closest.agree()},
-                    {"edge_ties", k.closest.edge_ties},
-                    {"precision_ties", k.closest.precision_ties},
-                    {"reference_errors", k.closest.reference_errors},
-                    {"failures", k.closest.failures},
-                    {"any_hit_failures", k.any.failures},
-                    {"first_failures", ex}});
-    }
-    nlohmann::json j = rtp::tools::json_stamp("rtpack-validate");
-    j["package"] = rtp::utf8_display(package);
-    j["reference"] = embree ? "embree" : "in_core";
-    j["kinds"] = jk;
-    j["out_of_core"] = {{"memory_budget", budget},
-                        {"minimum_budget", minimum},
-                        {"on_demand_bytes", on_demand},
-                        {"rounds", total.rounds},
-                        {"chunks_loaded", total.cache.loads},
-                        {"bytes_read", total.cache.bytes_read},
-                        {"cache_hit_rate", total.cache.hit_rate()},
-                        {"batching_point_visits", total.point_visits},
-                        {"culled_visits", total.culled_visits},
-                        {"peak_cache_bytes", total.cache.peak_resident_bytes},
-                        {"peak_resident_bytes", total.peak_resident_bytes},
-                        {"peak_rss_bytes", uint64_t(rtp::peak_rss_mib() * 1048576.0)},
-                        {"seconds", total.total_seconds}};
-    j["failures"] = failures;
-    j["ok"] = failures == 0;
-    if (json) {
-      std::cout << j.dump(2) << "\n";
-    } else {
-      std::printf("%-8s %9s %9s %9s %10s %13s %9s %9s\n", "kind", "rays", "agree", "edge ties", "prec. ties", "Embree errors",
-                  "failures", "any-hit");
-      for (const KindResult& k : results)
-        std::printf("%-8s %9llu %9llu %9llu %10llu %13llu %9llu %9llu\n", k.kind.c_str(), (unsigned long long)k.closest.rays,
-                    (unsigned long long)k.closest.agree(), (unsigned long long)k.closest.edge_ties,
-                    (unsigned long long)k.closest.precision_ties, (unsigned long long)k.closest.reference_errors,
-                    (unsigned long long)k.closest.failures, (unsigned long long)k.any.failures);
-      std::printf(
-          "out of core: budget %.1f MiB (minimum %.1f, on demand %.1f), %llu chunks loaded, %.1f MiB read, cache hit "
-          "rate %.1f%%, peak cache %.1f MiB, peak resident %.1f MiB, peak RSS %.1f MiB\n",
-          double(budget) / 1048576.0, double(minimum) / 1048576.0, double(on_demand) / 1048576.0,
-          (unsigned long long)total.cache.loads, double(total.cache.bytes_read) / 1048576.0, 100 * total.cache.hit_rate(),
-          double(total.cache.peak_resident_bytes) / 1048576.0, double(total.peak_resident_bytes) / 1048576.0,
-          rtp::peak_rss_mib());
-      for (const KindResult& k : results)
-        for (const rtp::RayDiff& d : k.closest.first_failures)
-          std::printf("FAIL %s ray %zu:\n%s\n", k.kind.c_str(), d.index, d.describe().c_str());
-      std::printf("%s\n", failures ? "FAILED: some answers are wrong" : "ok: every answer agrees with the reference");
-    }
-    if (failures)
-      return rtp::tools::report_error("rtpack-validate", false, package, rtp::ExitCode::kInputInvalid,
-                                      std::to_string(failures) + " rays answered wrongly (rays named above)");
-    return 0;
-  });
+  if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+  return rtp::tools::run_reporting_errors("rtpack-validate", a.json, a.package, [&] { return validate(a); });
 }
