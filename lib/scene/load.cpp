@@ -224,6 +224,30 @@ bool read_container(int fd, const std::string& path, uint64_t file_size, std::st
   return is_glb;
 }
 
+// /extensionsRequired: every entry a string naming an extension this importer supports.
+void check_required_extensions(const json& j) {
+  if (!j.contains("extensionsRequired")) return;
+  std::string unknown;
+  if (!j["extensionsRequired"].is_array()) fail_invalid("/extensionsRequired: not an array");
+  for (const auto& e : j["extensionsRequired"])
+    if (!e.is_string() || !known_extensions().count(e.get<std::string>()))
+      unknown += (unknown.empty() ? "" : ", ") + (e.is_string() ? e.get<std::string>() : e.dump());
+  if (!unknown.empty()) fail_invalid("/extensionsRequired: unsupported required extensions: " + unknown);
+}
+
+// The folders external buffers may resolve inside: the glTF's own and each --allow-path, canonical.
+std::vector<fs::path> buffer_roots(const std::string& base_dir, const std::vector<std::string>& allowed_dirs) {
+  std::vector<fs::path> dirs{base_dir};
+  dirs.insert(dirs.end(), allowed_dirs.begin(), allowed_dirs.end());
+  std::vector<fs::path> roots;
+  for (const fs::path& d : dirs) {
+    std::error_code ec;
+    const fs::path c = fs::weakly_canonical(fs::absolute(d, ec), ec);
+    if (!ec) roots.push_back(c);
+  }
+  return roots;
+}
+
 }  // namespace
 
 Document load_document(const std::string& path, const std::vector<std::string>& allowed_dirs) {
@@ -260,27 +284,12 @@ Document load_document(const std::string& path, const std::vector<std::string>& 
       j["asset"]["version"].get<std::string>().rfind("2.", 0) != 0)
     fail_invalid("/asset/version: not a glTF 2.x file");
 
-  if (j.contains("extensionsRequired")) {
-    std::string unknown;
-    if (!j["extensionsRequired"].is_array()) fail_invalid("/extensionsRequired: not an array");
-    for (const auto& e : j["extensionsRequired"])
-      if (!e.is_string() || !known_extensions().count(e.get<std::string>()))
-        unknown += (unknown.empty() ? "" : ", ") + (e.is_string() ? e.get<std::string>() : e.dump());
-    if (!unknown.empty()) fail_invalid("/extensionsRequired: unsupported required extensions: " + unknown);
-  }
+  check_required_extensions(j);
 
   // Real sizes of the buffers' data, and which are meshopt fallback buffers (no data in the file).
   std::vector<int64_t> sizes;
   std::vector<int> fallback;
-  std::vector<fs::path> roots;  // external buffers must resolve inside one of these
-  for (const fs::path& d : [&] {
-         std::vector<fs::path> v{doc.base_dir};
-         v.insert(v.end(), allowed_dirs.begin(), allowed_dirs.end());
-         return v;
-       }()) {
-    const fs::path c = fs::weakly_canonical(fs::absolute(d, ec), ec);
-    if (!ec) roots.push_back(c);
-  }
+  const std::vector<fs::path> roots = buffer_roots(doc.base_dir, allowed_dirs);  // external buffers resolve inside one
   ApprovedMap approved;
   uint64_t bin_buffer_bytes = UINT64_MAX;  // byteLength of buffer 0 when it is the .glb BIN chunk
   if (j.contains("buffers")) {

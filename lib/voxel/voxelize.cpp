@@ -209,6 +209,21 @@ void or_small_box(Grid& g, const detail::CellTests& t, const int f[3], const int
     if (bits[i]) g.or_block(uint32_t(bx0 + i % nbx), uint32_t(by0 + i / nbx % nby), uint32_t(bz0 + i / (nbx * nby)), bits[i]);
 }
 
+// Schwarz & Seidel 2010 §3.1, the projected edge functions per plane (a, b) = (x, y), (y, z), (z, x) of the
+// triangle with normal n, edges e and vertices v against boxes of size dp; the orientation follows the normal's
+// component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
+void edge_functions(const double (&n)[3], const double (&e)[3][3], const double (&v)[3][3], double dp, detail::CellTests& t) {
+  for (int p = 0; p < 3; ++p) {
+    const int a = p, b = p == 2 ? 0 : p + 1, w = p == 0 ? 2 : p - 1;
+    const double s = n[w] >= 0 ? 1.0 : -1.0;
+    for (int i = 0; i < 3; ++i) {
+      const double nx = -e[i][b] * s, ny = e[i][a] * s;
+      t.ex[p][i] = nx, t.ey[p][i] = ny;
+      t.ed[p][i] = -(nx * v[i][a] + ny * v[i][b]) + std::max(0.0, dp * nx) + std::max(0.0, dp * ny);
+    }
+  }
+}
+
 }  // namespace
 
 // Schwarz & Seidel 2010 §3.1: a triangle overlaps a box (corner p, size dp) iff their bounding boxes
@@ -265,18 +280,10 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
   }
   // Projected edge functions per plane (a, b) = (x, y), (y, z), (z, x); the orientation follows the
   // normal's component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
-  double(&ex)[3][3] = t.ex;
-  double(&ey)[3][3] = t.ey;
-  double(&ed)[3][3] = t.ed;
-  for (int p = 0; p < 3; ++p) {
-    const int a = p, b = p == 2 ? 0 : p + 1, w = p == 0 ? 2 : p - 1;
-    const double s = n[w] >= 0 ? 1.0 : -1.0;
-    for (int i = 0; i < 3; ++i) {
-      const double nx = -e[i][b] * s, ny = e[i][a] * s;
-      ex[p][i] = nx, ey[p][i] = ny;
-      ed[p][i] = -(nx * v[i][a] + ny * v[i][b]) + std::max(0.0, dp * nx) + std::max(0.0, dp * ny);
-    }
-  }
+  edge_functions(n, e, v, dp, t);
+  const double(&ex)[3][3] = t.ex;
+  const double(&ey)[3][3] = t.ey;
+  const double(&ed)[3][3] = t.ed;
   // A small box (FlightHelmet at 128^3: 44k of its 95k triangles, two or three cells a side): every
   // cell tested, four along x per AVX2 register (voxelize_rows_avx2.cpp, the same tests in the same
   // arithmetic as the loop below, so the same cells).
