@@ -231,49 +231,105 @@ OracleStats in_batches(const fmt::Ray* rays, size_t n, RayCoherence coherence, S
   return {n, invalid.load(), unsupported.load()};
 }
 
-// Packets of 16 neighbouring rays (Embree's packet traversal; ray order decides coherence).
-void intersect_packets16(RTCScene top, RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) {
-  for (unsigned p = 0; p < m; p += 16) {
-    alignas(64) RTCRayHit16 pk;
-    alignas(64) int valid[16];
-    for (unsigned j = 0; j < 16; ++j) {
-      valid[j] = p + j < m ? -1 : 0;
-      // Inactive lanes carry a copy of the packet's first ray: Embree's AVX-512 rtcOccluded16 was
-      // seen to spin forever on zeroed inactive lanes (zero direction).
-      const RTCRayHit& src = buf[valid[j] ? p + j : p];
-      pk.ray.org_x[j] = src.ray.org_x;
-      pk.ray.org_y[j] = src.ray.org_y;
-      pk.ray.org_z[j] = src.ray.org_z;
-      pk.ray.tnear[j] = src.ray.tnear;
-      pk.ray.dir_x[j] = src.ray.dir_x;
-      pk.ray.dir_y[j] = src.ray.dir_y;
-      pk.ray.dir_z[j] = src.ray.dir_z;
-      pk.ray.time[j] = 0;
-      pk.ray.tfar[j] = src.ray.tfar;
-      pk.ray.mask[j] = 0xFFFFFFFFu;
-      pk.ray.id[j] = 0;
-      pk.ray.flags[j] = 0;
-      pk.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-      pk.hit.primID[j] = RTC_INVALID_GEOMETRY_ID;
-      pk.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
-    }
-    rtcIntersect16(valid, top, ctx, &pk);
-    for (unsigned j = 0; j < 16 && p + j < m; ++j) {
-      RTCRayHit& dst = buf[p + j];
-      dst.ray.tfar = pk.ray.tfar[j];
-      dst.hit.geomID = pk.hit.geomID[j];
-      dst.hit.primID = pk.hit.primID[j];
-      dst.hit.instID[0] = pk.hit.instID[0][j];
-      dst.hit.u = pk.hit.u[j];
-      dst.hit.v = pk.hit.v[j];
-    }
+// Packets of 16 neighbouring valid rays (Embree's packet traversal; ray order decides coherence), loaded
+// straight from fmt::Ray into Embree's SoA layout and answered straight into the hits.
+class Packet16 {
+ public:
+  explicit Packet16(RTCIntersectContext* ctx) : ctx_(ctx) {}
+  bool add(const fmt::Ray& r, size_t index) {
+    const unsigned j = m_;
+    pk_.ray.org_x[j] = r.org[0];
+    pk_.ray.org_y[j] = r.org[1];
+    pk_.ray.org_z[j] = r.org[2];
+    pk_.ray.tnear[j] = r.tnear;
+    pk_.ray.dir_x[j] = r.dir[0];
+    pk_.ray.dir_y[j] = r.dir[1];
+    pk_.ray.dir_z[j] = r.dir[2];
+    pk_.ray.time[j] = 0;
+    pk_.ray.tfar[j] = r.tfar;
+    pk_.ray.mask[j] = 0xFFFFFFFFu;
+    pk_.ray.id[j] = 0;
+    pk_.ray.flags[j] = 0;
+    pk_.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+    pk_.hit.primID[j] = RTC_INVALID_GEOMETRY_ID;
+    pk_.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+    index_[j] = index;
+    return ++m_ == 16;
   }
+  void trace(RTCScene top, fmt::Hit* hits) {
+    if (m_ == 0) return;
+    alignas(64) int valid[16];
+    for (unsigned j = 0; j < 16; ++j) valid[j] = j < m_ ? -1 : 0;
+    // Inactive lanes carry a copy of the packet's first ray: Embree's AVX-512 rtcOccluded16 was seen to
+    // spin forever on zeroed inactive lanes (zero direction).
+    for (unsigned j = m_; j < 16; ++j) copy_lane(0, j);
+    rtcIntersect16(valid, top, ctx_, &pk_);
+    for (unsigned j = 0; j < m_; ++j) {
+      fmt::Hit& h = hits[index_[j]];
+      if (pk_.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID) {
+        set_miss(h);
+      } else {
+        h.t = pk_.ray.tfar[j];
+        h.instance = pk_.hit.instID[0][j];
+        h.prim = pk_.hit.primID[j];
+        h.u = pk_.hit.u[j];
+        h.v = pk_.hit.v[j];
+      }
+    }
+    m_ = 0;
+  }
+
+ private:
+  void copy_lane(unsigned from, unsigned to) {
+    pk_.ray.org_x[to] = pk_.ray.org_x[from];
+    pk_.ray.org_y[to] = pk_.ray.org_y[from];
+    pk_.ray.org_z[to] = pk_.ray.org_z[from];
+    pk_.ray.tnear[to] = pk_.ray.tnear[from];
+    pk_.ray.dir_x[to] = pk_.ray.dir_x[from];
+    pk_.ray.dir_y[to] = pk_.ray.dir_y[from];
+    pk_.ray.dir_z[to] = pk_.ray.dir_z[from];
+    pk_.ray.time[to] = 0;
+    pk_.ray.tfar[to] = pk_.ray.tfar[from];
+    pk_.ray.mask[to] = 0xFFFFFFFFu;
+    pk_.ray.id[to] = 0;
+    pk_.ray.flags[to] = 0;
+  }
+
+  alignas(64) RTCRayHit16 pk_;
+  RTCIntersectContext* ctx_;
+  size_t index_[16] = {};
+  unsigned m_ = 0;
+};
+
+OracleStats closest_packets16(RTCScene top, const fmt::Ray* rays, fmt::Hit* hits, size_t n) {
+  std::atomic<uint64_t> invalid{0}, unsupported{0};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& range) {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    Packet16 packet(&ctx);
+    uint64_t counts[2] = {0, 0};  // invalid, unsupported
+    for (size_t i = range.begin(); i < range.end(); ++i) {
+      const RayStatus st = ray_status(rays[i]);
+      if (st == RayStatus::kValid) {
+        if (packet.add(rays[i], i)) packet.trace(top, hits);
+      } else {
+        counts[st == RayStatus::kInvalid ? 0 : 1] += 1;
+        set_miss(hits[i]);
+      }
+    }
+    packet.trace(top, hits);
+    invalid.fetch_add(counts[0], std::memory_order_relaxed);
+    unsupported.fetch_add(counts[1], std::memory_order_relaxed);
+  });
+  return {n, invalid.load(), unsupported.load()};
 }
 
 }  // namespace
 
 OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n, RayCoherence coherence) const {
   RTCScene top = impl_->top;
+  if (coherence == RayCoherence::kCoherent) return closest_packets16(top, rays, hits, n);
   return in_batches<RTCRayHit>(
       rays, n, coherence, [&](size_t i) { set_miss(hits[i]); },
       [](const fmt::Ray& r, RTCRayHit& rh) {
@@ -282,13 +338,7 @@ OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       },
-      [&](RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) {
-        if (coherence == RayCoherence::kCoherent) {
-          intersect_packets16(top, ctx, buf, m);
-        } else {
-          rtcIntersect1M(top, ctx, buf, m, sizeof(RTCRayHit));
-        }
-      },
+      [&](RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) { rtcIntersect1M(top, ctx, buf, m, sizeof(RTCRayHit)); },
       [&](size_t i, const RTCRayHit& rh) {
         fmt::Hit& h = hits[i];
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {

@@ -278,8 +278,6 @@ void voxelize_triangle(Grid& g, const Vec3d& v0, const Vec3d& v1, const Vec3d& v
     d1 += n[k] * (c - v[0][k]);
     d2 += n[k] * ((dp - c) - v[0][k]);
   }
-  // Projected edge functions per plane (a, b) = (x, y), (y, z), (z, x); the orientation follows the
-  // normal's component on the third axis: edge (p, i) is inside when ex*pa + ey*pb + ed >= 0.
   edge_functions(n, e, v, dp, t);
   const double(&ex)[3][3] = t.ex;
   const double(&ey)[3][3] = t.ey;
