@@ -39,10 +39,10 @@ enum class OracleQuality { kLow, kMedium, kHigh };
 const char* quality_name(OracleQuality q);
 
 /// How the rays of one call are laid out. kIncoherent: rtcIntersect1M / rtcOccluded1M streams with
-/// RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT (single-ray traversal); kCoherent: closest hits in
-/// rtcIntersect16 packets of 16 consecutive valid rays loaded straight into SoA, with the COHERENT flag
-/// (for primary rays in 4x4 tile order the fastest Embree path measured here), any hits in an rtcOccluded1M stream with the COHERENT
-/// flag (rtcOccluded16 hangs in the Debian build, see embree_oracle.cpp).
+/// RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT (single-ray traversal); kCoherent: closest hits in rtcIntersect16
+/// packets of 16 consecutive valid rays loaded straight into SoA, with the COHERENT flag (for primary rays
+/// in 4x4 tile order the fastest Embree path measured here), any hits in an rtcOccluded1M stream with the
+/// COHERENT flag (rtcOccluded16 hangs in the Debian build, see embree_oracle.cpp).
 /// kCoherent is for timing only: Embree's packet traversal is not robust (it misses a ray straight down
 /// from gallery.glb's orthographic camera, direction (0, -1, -2.2e-16), that the stream path hits).
 /// Reference answers always use kIncoherent.
