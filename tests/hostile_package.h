@@ -79,6 +79,22 @@ inline std::pair<size_t, std::string> chunk_of(const std::string& path, fmt::Chu
   return {size_t(i), chunk_label(r.toc()[size_t(i)], size_t(i))};
 }
 
+// A batching point with at least two instances.
+inline size_t point_with_instances(const std::string& path, uint64_t& id) {
+  PackageReader r(path);
+  for (size_t i = 0; i < r.toc().size(); ++i) {
+    if (r.toc()[i].kind != uint32_t(fmt::ChunkKind::kBatchingPoint)) continue;
+    AlignedBytes b = r.read(i);
+    uint64_t n = 0;
+    section<uint32_t>(b.data(), fmt::SectionType::kInstanceIds, &n);
+    if (n >= 2) {
+      id = r.toc()[i].id;
+      return i;
+    }
+  }
+  throw std::runtime_error("no batching point with two instances");
+}
+
 inline bool contains_all(const std::string& s, const std::vector<std::string>& needles) {
   for (const std::string& n : needles)
     if (s.find(n) == std::string::npos) return false;

@@ -178,22 +178,6 @@ TEST_F(Hostile, SegmentLeafPrimOutOfRange) {
   expect_everywhere(p, {label, "block 0 lane 0: prim " + std::to_string(tris) + " out of range"});
 }
 
-// A batching point with at least two instances.
-size_t point_with_instances(const std::string& path, uint64_t& id) {
-  PackageReader r(path);
-  for (size_t i = 0; i < r.toc().size(); ++i) {
-    if (r.toc()[i].kind != uint32_t(fmt::ChunkKind::kBatchingPoint)) continue;
-    AlignedBytes b = r.read(i);
-    uint64_t n = 0;
-    section<uint32_t>(b.data(), SectionType::kInstanceIds, &n);
-    if (n >= 2) {
-      id = r.toc()[i].id;
-      return i;
-    }
-  }
-  throw std::runtime_error("no batching point with two instances");
-}
-
 TEST_F(Hostile, InstanceLevelOfABatchingPoint) {
   struct Case {
     const char* name;

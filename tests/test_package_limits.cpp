@@ -68,15 +68,22 @@ TEST_F(Limits, ZstdFrameDeclaringGigabytesIsRejectedBeforeAllocating) {
   const std::string p = copy(bases().forest_zstd);
   const size_t index = big_zstd_chunk(p);
   const std::string label = lie_about_size(p, index, 3000000000ull);
-  const PackageReader r(p);
-  try {
-    r.read(index);
-    FAIL() << "read a chunk declaring 3 GB";
+  try {  // refused with the table of contents, before anything (a memory budget, a buffer) is sized by it
+    const PackageReader r(p);
+    FAIL() << "opened a package whose chunk declares 3 GB";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ExitCode::kInputInvalid);
     EXPECT_TRUE(contains_all(e.what(), {label, "raw_size 3000000000 is more than 1024 times"})) << e.what();
   }
   expect_tools_reject(p, {label, "raw_size 3000000000 is more than 1024 times"});
+  // Sized from that raw_size, the out-of-core minimum budget used to refuse --memory-budget (exit 1, a usage error).
+  const ToolResult ooc =
+      run_tool("rtpack-trace",
+               {p, "--rays", (dir / "tools.rays").string(), "--hits", (dir / "ooc.hits").string(), "--memory-budget", "64MiB"},
+               dir, {}, 20);
+  EXPECT_EQ(ooc.code, 3) << ooc.err;
+  EXPECT_TRUE(contains_all(ooc.err, {label, "raw_size 3000000000"})) << ooc.err;
+  EXPECT_FALSE(fs::exists(dir / "ooc.hits"));
 }
 
 TEST_F(Limits, ZstdFrameDeclaringMoreThanItHoldsFailsWhileDecoding) {

@@ -288,6 +288,7 @@ TEST_F(Package, TraceReportsTheLoadItDid) {
       case fmt::ChunkKind::kBatchingPoints:
       case fmt::ChunkKind::kDagPool:
       case fmt::ChunkKind::kInstances:
+      case fmt::ChunkKind::kMeshes:  // both tables: every geometry chunk is checked against them
       case fmt::ChunkKind::kMeshSegment:
       case fmt::ChunkKind::kBatchingPoint: ++chunks, raw += e.raw_size; break;
       default: break;

@@ -86,6 +86,7 @@ void check_resident(Ctx& c) {
     guarded(c, [&] {
       check_instance_table(res.instances.data(), res.instances.size(), res.meshes_ok ? res.meshes.size() : kUnknownCount,
                            res.descs_ok ? res.descs.size() : kUnknownCount, res.instances_label);
+      res.instances_checked = res.meshes_ok;
     });
   if (res.descs_ok)
     guarded(c, [&] { check_point_descs(res.descs.data(), res.descs.size(), res.segment_refs.size(), res.descs_label); });
@@ -211,11 +212,21 @@ ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   return out;
 }
 
+// What decode_segment / decode_point check geometry chunks against: the tables that passed their own checks.
+SceneTables scene_tables(const Resident& res) {
+  SceneTables t;
+  if (res.instances_ok) t.n_instances = res.instances.size();
+  if (res.instances_checked) t.instances = res.instances.data();
+  if (res.meshes_ok) t.meshes = res.meshes.data(), t.n_meshes = res.meshes.size();
+  return t;
+}
+
 template <int W, int B>
 void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   const std::string label = c.label(i);
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kMeshSegment), label);
-  const GeometrySections<W, B> geo = decode_segment<W, B>(v);  // throws: the chunk becomes a problem
+  // Throws: the chunk becomes a problem.
+  const GeometrySections<W, B> geo = decode_segment<W, B>(v, scene_tables(c.res), c.r.toc()[i].id);
   const uint64_t ne = geo.n_entries;
   const fmt::MeshEntry* e = geo.entries;
   const fmt::WideNode<W>* nodes = geo.nodes;
@@ -253,7 +264,7 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   const std::string label = c.label(i);
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kBatchingPoint), label);
   // Throws (the chunk becomes a problem) unless every index and range a walk follows is sound.
-  const PointSections<W, B> sec = decode_point<W, B>(v, c.res.instances_ok ? c.res.instances.size() : kUnknownCount);
+  const PointSections<W, B> sec = decode_point<W, B>(v, scene_tables(c.res));
   const uint64_t n_te = 1, n_in = sec.n_instance_nodes, n_ids = sec.n_instance_ids, ne = sec.n_entries;
   const fmt::MeshEntry* te = sec.instance_bvh;
   const fmt::WideNode<W>* inodes = sec.instance_nodes;

@@ -140,6 +140,7 @@ inline std::string str(uint64_t v) { return std::to_string(v); }
 // The resident sections as read (a flag is false when its chunk is missing or unreadable).
 struct Resident {
   bool meta_ok = false, top_ok = false, descs_ok = false, instances_ok = false, meshes_ok = false, source_ok = false;
+  bool instances_checked = false;  // the instance table passed check_instance_table against the mesh table
   nlohmann::json meta;
   std::vector<fmt::TopNode> top;
   std::vector<fmt::BatchingPointDesc> descs;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "reader/check_references.h"
 
 namespace rtp {
 namespace {
@@ -62,6 +63,17 @@ void check_wide_bvh(const fmt::WideNode<W>* nodes, uint64_t nn, uint32_t root, u
   if (!msg.empty()) fail_invalid(msg);
 }
 
+// Every lane's prim of `count` leaf blocks < `triangles` (kUnknownCount: unchecked).
+template <int B, class What>
+void check_leaf_prims(const fmt::LeafBlock<B>* blocks, uint64_t count, uint64_t triangles, const What& what) {
+  if (triangles == kUnknownCount) return;
+  for (uint64_t b = 0; b < count; ++b)
+    for (int l = 0; l < B; ++l)
+      if (blocks[b].prim[l] >= triangles)
+        fail_invalid(what() + ": block " + str(b) + " lane " + str(uint64_t(l)) + ": prim " + str(blocks[b].prim[l]) +
+                     " out of range (" + str(triangles) + " triangles)");
+}
+
 // The entries' BVHs of a geometry chunk. `prims`: also every leaf prim < the entry's triangles.
 template <int W, int B>
 void check_entries(const GeometrySections<W, B>& g, const std::string& label, const char* entry_name, bool prims) {
@@ -81,13 +93,7 @@ void check_entries(const GeometrySections<W, B>& g, const std::string& label, co
       fail_invalid(what() + ": node ranges of the entries overlap (more nodes than the section holds)");
     if (seen.size() < e.node_count) seen.assign(e.node_count, 0);
     check_wide_bvh<W>(g.nodes + e.node_first, e.node_count, e.root, e.block_count, seen, what, "block");
-    if (!prims) continue;
-    const fmt::LeafBlock<B>* blocks = g.blocks + e.block_first;
-    for (uint64_t b = 0; b < e.block_count; ++b)
-      for (int l = 0; l < B; ++l)
-        if (blocks[b].prim[l] >= e.triangles)
-          fail_invalid(what() + ": block " + str(b) + " lane " + str(uint64_t(l)) + ": prim " + str(blocks[b].prim[l]) +
-                       " out of range (" + str(e.triangles) + " triangles)");
+    if (prims) check_leaf_prims(g.blocks + e.block_first, e.block_count, e.triangles, what);
   }
 }
 
@@ -169,10 +175,10 @@ void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t sour
   for (uint64_t m = 0; m < count; ++m) {
     const fmt::MeshInfo& mi = meshes[m];
     auto what = [&] { return label + ": mesh " + str(m); };
-    if (!range_inside(mi.source_prim_first, mi.source_prim_count, source_prims))
+    if (source_prims != kUnknownCount && !range_inside(mi.source_prim_first, mi.source_prim_count, source_prims))
       fail_invalid(what() + ": source_prim_first " + str(mi.source_prim_first) + " + source_prim_count " +
                    str(mi.source_prim_count) + " outside the source map's " + str(source_prims) + " primitives");
-    if (!range_inside(mi.source_tri_first, mi.triangles, source_tris))
+    if (source_tris != kUnknownCount && !range_inside(mi.source_tri_first, mi.triangles, source_tris))
       fail_invalid(what() + ": source_tri_first " + str(mi.source_tri_first) + " + triangles " + str(mi.triangles) +
                    " outside the source map's " + str(source_tris) + " triangles");
     if (mi.segment != 0xFFFFFFFFu && segments != kUnknownCount && mi.segment >= segments)
@@ -181,15 +187,16 @@ void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t sour
 }
 
 template <int W, int B>
-GeometrySections<W, B> decode_segment(const ChunkView& v) {
+GeometrySections<W, B> decode_segment(const ChunkView& v, const SceneTables& tables, uint64_t segment) {
   GeometrySections<W, B> g;
   get_geometry(v, g);
   check_entries(g, v.label(), "mesh", true);
+  check_segment_meshes(g.entries, g.n_entries, segment, tables, v.label());
   return g;
 }
 
 template <int W, int B>
-PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
+PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables) {
   using fmt::SectionType;
   const std::string& L = v.label();
   PointSections<W, B> p;
@@ -221,8 +228,8 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
   }
   if (n_gid != p.n_records) fail_invalid(L + ": " + str(n_gid) + " global ids for " + str(p.n_records) + " instances");
   for (uint64_t k = 0; k < p.n_records; ++k) {
-    if (scene_instances != kUnknownCount && p.global_ids[k] >= scene_instances)
-      fail_invalid(L + ": global id " + str(k) + " = " + str(p.global_ids[k]) + " out of range (" + str(scene_instances) +
+    if (tables.n_instances != kUnknownCount && p.global_ids[k] >= tables.n_instances)
+      fail_invalid(L + ": global id " + str(k) + " = " + str(p.global_ids[k]) + " out of range (" + str(tables.n_instances) +
                    " scene instances)");
     if (p.records[k].mesh >= p.n_slots)
       fail_invalid(L + ": instance " + str(k) + ": mesh slot " + str(p.records[k].mesh) + " out of range (" + str(p.n_slots) +
@@ -232,6 +239,13 @@ PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances) {
     if ((p.slots[s] & fmt::kPieceBit) && (p.slots[s] & ~fmt::kPieceBit) >= p.n_entries)
       fail_invalid(L + ": mesh slot " + str(s) + " names piece entry " + str(p.slots[s] & ~fmt::kPieceBit) + " out of range (" +
                    str(p.n_entries) + " entries)");
+  check_instance_records(p.records, p.n_records, L);
+  // A piece's leaves index its scene mesh's triangles (SPEC §4.2).
+  const std::vector<uint64_t> bounds =
+      piece_triangle_bounds({p.records, p.global_ids, p.slots, p.n_records, p.n_entries}, tables, L);
+  for (uint64_t k = 0; k < p.n_entries; ++k)
+    check_leaf_prims(p.blocks + p.entries[k].block_first, p.entries[k].block_count, bounds[k],
+                     [&] { return L + ": piece " + str(p.entries[k].id) + " (entry " + str(k) + ")"; });
   return p;
 }
 
@@ -252,9 +266,9 @@ std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, 
   return {};
 }
 
-#define RTP_CHECK_WB(W, B)                                                \
-  template GeometrySections<W, B> decode_segment<W, B>(const ChunkView&); \
-  template PointSections<W, B> decode_point<W, B>(const ChunkView&, uint64_t);
+#define RTP_CHECK_WB(W, B)                                                                              \
+  template GeometrySections<W, B> decode_segment<W, B>(const ChunkView&, const SceneTables&, uint64_t); \
+  template PointSections<W, B> decode_point<W, B>(const ChunkView&, const SceneTables&);
 RTP_CHECK_WB(4, 4)
 RTP_CHECK_WB(8, 8)
 RTP_CHECK_WB(16, 16)

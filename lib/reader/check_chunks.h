@@ -36,9 +36,23 @@ void check_instance_table(const fmt::InstanceRef* refs, uint64_t count, uint64_t
                           const std::string& label);
 
 // Kind 5 against kind 6: every mesh's source ranges inside the source map (so every triangle count is
-// backed by 8 bytes of the file), segment < `segments` or none.
+// backed by 8 bytes of the file; kUnknownCount: the source map not read), segment < `segments` or none.
 void check_mesh_table(const fmt::MeshInfo* meshes, uint64_t count, uint64_t source_prims, uint64_t source_tris, uint64_t segments,
                       const std::string& label);
+
+// The resident tables a reader checks geometry chunks against (SPEC §4.6): the instance table (kind 4,
+// passed check_instance_table) and the mesh table (kind 5, passed check_mesh_table). A null table was not
+// read (or failed its own check): the rules that need it are then not checked (rtpack-inspect lists why).
+struct SceneTables {
+  const fmt::InstanceRef* instances = nullptr;
+  uint64_t n_instances = kUnknownCount;
+  const fmt::MeshInfo* meshes = nullptr;
+  uint64_t n_meshes = kUnknownCount;
+};
+
+// Kind 16 section 5 (SPEC §2.4): T finite and inside the float range (the world is float), L^-1 finite,
+// either all zeros (singular L) or of non-zero determinant, flags = the sign of that determinant, reserved 0.
+void check_instance_records(const fmt::InstanceRecord* records, uint64_t count, const std::string& label);
 
 // The sections of a geometry chunk (kind 17 mesh segment; kind 16 uses these for its pieces).
 template <int W, int B>
@@ -65,15 +79,20 @@ struct PointSections : GeometrySections<W, B> {
 // entries' node ranges not overlapping), its root, every child in range and after its parent, every
 // node referenced at most once, every leaf's blocks inside the entry's, octant orders < W, filled
 // lanes' boxes finite, every leaf prim < the entry's triangles.
+// With the mesh table: every entry's mesh in range, held by this segment (`segment`) and of the table's
+// triangle count, and no mesh twice.
 template <int W, int B>
-GeometrySections<W, B> decode_segment(const ChunkView& v);
+GeometrySections<W, B> decode_segment(const ChunkView& v, const SceneTables& tables, uint64_t segment);
 
 // Parses and checks a batching point: its pieces as decode_segment (prims unchecked: they index the
 // scene mesh), the instance BVH (one entry whose sizes match its sections, the same node rules, leaves
 // inside the instance ids), instance ids < records and none twice, one global id per record and each
-// < `scene_instances`, record meshes < slots, piece slots naming an entry.
+// < the scene's instances, record meshes < slots, piece slots naming an entry, the records' transforms
+// (check_instance_records). With both tables, per record: a piece slot for a mesh the mesh table stores as
+// pieces, and every leaf prim of that piece < the mesh's triangles; otherwise the slot's mesh is the
+// instance's and the mesh table places it in a segment.
 template <int W, int B>
-PointSections<W, B> decode_point(const ChunkView& v, uint64_t scene_instances);
+PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables);
 
 // Kinds 18/19: one attribute entry's ranges inside sections of `tris` triangles, `normals` / `uvs`
 // vertices and `tri_ids` ids (64-bit safe). Returns "" or what is wrong (the field named).

@@ -99,7 +99,23 @@ void PackageReader::check_header_and_toc() {
     if (e.offset % fmt::kAlignment || e.offset < fmt::kAlignment || e.stored_size > header_.toc_offset ||
         e.offset > header_.toc_offset - e.stored_size)
       fail_invalid(chunk_label(e, i) + ": out of bounds (" + std::to_string(e.stored_size) + " bytes)");
+    check_sizes(e, i);
   }
+}
+
+// Every chunk's declared raw size, checked when the TOC is read, so nothing (a memory budget, a buffer)
+// is ever computed from a size the reader would refuse at decode (formats/SPEC.md §3).
+void PackageReader::check_sizes(const fmt::TocEntry& e, size_t index) {
+  if (e.compression == uint32_t(fmt::Compression::kNone)) {
+    if (e.raw_size != e.stored_size)
+      fail_invalid(chunk_label(e, index) + ": raw_size " + std::to_string(e.raw_size) + " differs from the " +
+                   std::to_string(e.stored_size) + " stored bytes of an uncompressed chunk");
+    return;
+  }
+  if (e.raw_size > kMaxChunkRatio * e.stored_size + kMaxChunkSlack)
+    fail_invalid(chunk_label(e, index) + ": raw_size " + std::to_string(e.raw_size) + " is more than " +
+                 std::to_string(kMaxChunkRatio) + " times the " + std::to_string(e.stored_size) +
+                 " stored bytes (the limit of formats/SPEC.md §3)");
 }
 
 PackageReader::~PackageReader() {
@@ -168,8 +184,7 @@ AlignedBytes PackageReader::read(size_t index) const {
 void PackageReader::read_into(size_t index, AlignedBytes& out) const {
   const fmt::TocEntry& e = toc_[index];
   if (e.compression == uint32_t(fmt::Compression::kNone)) {
-    if (e.raw_size != e.stored_size) fail_invalid(chunk_label(e, index) + ": raw size differs from stored size");
-    read_stored_into(index, out);
+    read_stored_into(index, out);  // raw_size = stored_size (check_sizes)
     const uint32_t c = crc32c(out.data(), out.size());
     if (c != e.crc32c)
       fail_invalid(chunk_label(e, index) + ": checksum mismatch (stored " + hex32(e.crc32c) + ", computed " + hex32(c) +
@@ -190,7 +205,7 @@ void PackageReader::read_into(size_t index, AlignedBytes& out) const {
   // The frame's declared size must equal the TOC's raw size, and neither is believed before the bytes
   // exist: the output buffer grows with what the frame really decodes to (never more than 2x of it),
   // so a small frame declaring gigabytes fails after a few megabytes, not after allocating them;
-  // and raw_size is capped by kMaxChunkRatio times the stored size.
+  // and raw_size was capped by kMaxChunkRatio times the stored size when the TOC was read.
   const unsigned long long declared = ZSTD_getFrameContentSize(stored.data(), stored.size());
   if (declared != e.raw_size)
     fail_invalid(chunk_label(e, index) + ": zstd frame declares " +
@@ -198,10 +213,6 @@ void PackageReader::read_into(size_t index, AlignedBytes& out) const {
                   : declared == ZSTD_CONTENTSIZE_ERROR ? std::string("an invalid header")
                                                        : std::to_string(declared) + " bytes") +
                  ", the table of contents raw_size " + std::to_string(e.raw_size));
-  if (e.raw_size > kMaxChunkRatio * e.stored_size + kMaxChunkSlack)
-    fail_invalid(chunk_label(e, index) + ": raw_size " + std::to_string(e.raw_size) + " is more than " +
-                 std::to_string(kMaxChunkRatio) + " times the " + std::to_string(e.stored_size) +
-                 " stored bytes (the limit of formats/SPEC.md §3)");
   thread_local std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> ctx(ZSTD_createDCtx(), ZSTD_freeDCtx);
   if (!ctx) throw std::bad_alloc();
   ZSTD_DCtx* dctx = ctx.get();

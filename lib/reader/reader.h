@@ -56,7 +56,8 @@ class PackageReader {
   // Into `out` (resized to the stored size, its capacity reused).
   void read_stored_into(size_t index, AlignedBytes& out) const;
   std::string path_;
-  void check_header_and_toc();  // the constructor's checks (it closes fd_ when they throw)
+  void check_header_and_toc();                                    // the constructor's checks (it closes fd_ when they throw)
+  static void check_sizes(const fmt::TocEntry& e, size_t index);  // raw_size against stored_size
   int fd_ = -1;
   bool direct_ = false;
   uint64_t file_size_ = 0;

@@ -19,6 +19,7 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
+#include "reader/scene_tables.h"
 #include "layout/chunk_io.h"
 #include "layout/dag_query.h"
 #include "trace/batch_scheduler.h"
@@ -82,11 +83,12 @@ uint64_t point_cost(const PackageReader& r, const Layout& l, uint64_t p) {
 struct Resident {
   AlignedBytes top_bytes, desc_bytes, dag_bytes;
   const fmt::TopNode* top = nullptr;
-  uint64_t top_count = 0, n_points = 0, n_instances = 0;
+  uint64_t top_count = 0, n_points = 0;
+  ResidentTables tables;  // instance and mesh tables: every geometry chunk is checked against them
   const fmt::DagGrid* grids = nullptr;
   voxel::DagView dag;
   Layout layout;
-  uint64_t bytes() const { return top_bytes.size() + desc_bytes.size() + dag_bytes.size(); }
+  uint64_t bytes() const { return top_bytes.size() + desc_bytes.size() + dag_bytes.size() + tables.bytes(); }
 };
 
 const AlignedBytes& must_read(const PackageReader& r, fmt::ChunkKind kind, AlignedBytes& out) {
@@ -129,10 +131,7 @@ Resident read_resident(const PackageReader& r) {
     const std::string e = voxel::check_dags(s.grids, n_grids, s.dag);
     if (!e.empty()) fail_invalid(v.label() + ": culling DAG of " + e);
   }
-  // The instance table only counted (global ids are checked against it), never held.
-  const int64_t ii = r.find(fmt::ChunkKind::kInstances, 0);
-  if (ii < 0) fail_invalid("missing instance table 0");
-  s.n_instances = r.section_count(size_t(ii), uint32_t(fmt::SectionType::kInstanceRefs), sizeof(fmt::InstanceRef));
+  s.tables = read_resident_tables(r, s.n_points);
   return s;
 }
 
@@ -303,11 +302,11 @@ class Batched final : public OutOfCoreTracer {
     const std::string label = chunk_label(e, index);
     if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) {
       ChunkView v(b.data(), b.size(), e.kind, label);
-      points_[e.id].s = decode_point<W, B>(v, res_.n_instances);
+      points_[e.id].s = decode_point<W, B>(v, res_.tables.view);
       return;
     }
     ChunkView v(b.data(), b.size(), e.kind, label);
-    const GeometrySections<W, B> g = decode_segment<W, B>(v);
+    const GeometrySections<W, B> g = decode_segment<W, B>(v, res_.tables.view, e.id);
     SegmentSlot<W, B>& seg = segments_[e.id];
     seg.meshes.clear();
     for (uint64_t k = 0; k < g.n_entries; ++k) {

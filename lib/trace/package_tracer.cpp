@@ -19,6 +19,7 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
+#include "reader/scene_tables.h"
 #include "layout/chunk_io.h"
 #include "layout/dag_query.h"
 #include "trace/top_level_walk.h"
@@ -75,7 +76,7 @@ class InCoreTracer final : public PackageTracer {
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kTopLevelBvh), labels_.back());
       top_ = v.get<fmt::TopNode>(fmt::SectionType::kTopNodes, top_count_, true);
     }
-    uint64_t n_points = 0, n_refs = 0, n_instances = 0;
+    uint64_t n_points = 0, n_refs = 0;
     const fmt::BatchingPointDesc* descs;
     const AlignedBytes& db = load(fmt::ChunkKind::kBatchingPoints, 0);
     ChunkView dv(db.data(), db.size(), uint32_t(fmt::ChunkKind::kBatchingPoints), labels_.back());
@@ -87,19 +88,20 @@ class InCoreTracer final : public PackageTracer {
       return 0;
     });
     load_dags(r, dv, n_points, load, checked);
-    {  // only its size: hits report scene instance ids, which must be in range
-      const AlignedBytes& b = load(fmt::ChunkKind::kInstances, 0);
-      ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kInstances), labels_.back());
-      v.get<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs, n_instances);
-      chunks_.back() = AlignedBytes();
+    // Every geometry chunk is checked against the instance and mesh tables (hits report scene instance ids).
+    tables_ = checked([&] { return read_resident_tables(r, n_points); });
+    for (fmt::ChunkKind k : {fmt::ChunkKind::kInstances, fmt::ChunkKind::kMeshes}) {
+      ++load_.chunks;
+      load_.stored_bytes += toc[size_t(r.find(k, 0))].stored_size;
     }
+    load_.raw_bytes += tables_.bytes();
     // Segments: mesh id -> view.
     std::map<uint32_t, MeshBvhView<W, B>> segment_meshes;
     for (size_t i = 0; i < toc.size(); ++i) {
       if (toc[i].kind != uint32_t(fmt::ChunkKind::kMeshSegment)) continue;
       const AlignedBytes& b = load(fmt::ChunkKind::kMeshSegment, toc[i].id);
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kMeshSegment), labels_.back());
-      const GeometrySections<W, B> g = checked([&] { return decode_segment<W, B>(v); });
+      const GeometrySections<W, B> g = checked([&] { return decode_segment<W, B>(v, tables_.view, toc[i].id); });
       for (uint64_t k = 0; k < g.n_entries; ++k) {
         const fmt::MeshEntry& e = g.entries[k];
         segment_meshes[e.id] = {g.nodes + e.node_first, g.blocks + e.block_first, e.root};
@@ -111,7 +113,7 @@ class InCoreTracer final : public PackageTracer {
       const std::string& label = labels_.back();
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
       Point<W, B>& pt = points_[p];
-      const PointSections<W, B> s = checked([&] { return decode_point<W, B>(v, n_instances); });
+      const PointSections<W, B> s = checked([&] { return decode_point<W, B>(v, tables_.view); });
       pt.global_ids = s.global_ids;
       pt.meshes.resize(s.n_slots);
       for (uint64_t k = 0; k < s.n_slots; ++k) {
@@ -422,6 +424,7 @@ class InCoreTracer final : public PackageTracer {
 
   std::vector<AlignedBytes> chunks_;
   std::vector<std::string> labels_;
+  ResidentTables tables_;
   const fmt::TopNode* top_ = nullptr;
   uint64_t top_count_ = 0;
   std::vector<Point<W, B>> points_;

@@ -1,0 +1,147 @@
+// What a geometry chunk says about scene meshes and instances, checked against the resident instance and
+// mesh tables at decode (lib/reader/check_references.h, formats/SPEC.md §4.6), and the instance records'
+// transforms (§2.4). Each case was an exit-0 wrong answer before: a package converted from a real
+// sample, one field patched with every checksum re-sealed; the tracer, rtpack-trace, rtpack-inspect and
+// --verify must all refuse it with exit 3, naming the chunk and the field.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "formats/bvh_layout.h"
+#include "formats/chunk.h"
+#include "hostile_package.h"
+
+namespace rtp::test {
+namespace {
+namespace RTP_UNITY_ID {  // unity builds: this file's own names (CMakeLists.txt)
+
+using fmt::SectionType;
+
+class HostileTables : public Hostile {
+ protected:
+  // A copy of `base` whose batching point `find` picks is patched by `edit(chunk)`, which returns the field
+  // text; every reader must refuse it naming the chunk and that field.
+  void expect_point_refused(const std::string& base, size_t (*find)(const std::string&, uint64_t&),
+                            const std::function<std::string(uint8_t*)>& edit) {
+    const std::string p = copy(base);
+    uint64_t id = 0;
+    const size_t index = find(p, id);
+    const std::string label = chunk_of(p, fmt::ChunkKind::kBatchingPoint, id).second;
+    std::string field;
+    patch_chunk(p, index, [&](uint8_t* chunk, size_t) { field = edit(chunk); });
+    expect_everywhere(p, {label, field});
+  }
+  // The records of a batching point with instances: `edit(records, count)` returns the field text.
+  void records_case(const char* name, const std::function<std::string(fmt::InstanceRecord*, uint64_t)>& edit) {
+    SCOPED_TRACE(name);
+    expect_point_refused(bases().forest, point_with_instances, [&](uint8_t* chunk) {
+      uint64_t n = 0;
+      auto* records = section<fmt::InstanceRecord>(chunk, SectionType::kInstances, &n);
+      return edit(records, n);
+    });
+  }
+};
+
+// Translation 1e308 with a NaN inverse: plain rtpack-trace answered 0 hits instead of 978, exit 0.
+TEST_F(HostileTables, InstanceTransformsThatAreNotFiniteOrSingular) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  records_case("far translation", [](fmt::InstanceRecord* r, uint64_t n) {
+    r[n - 1].translation[1] = 1e308;
+    return "instance " + std::to_string(n - 1) + ": translation";
+  });
+  records_case("NaN inverse", [&](fmt::InstanceRecord* r, uint64_t) {
+    r[0].inverse_linear[4] = nan;
+    return std::string("instance 0: inverse linear part element 4 is not finite");
+  });
+  records_case("singular, not zeros", [](fmt::InstanceRecord* r, uint64_t) {
+    for (int c = 0; c < 3; ++c) r[1].inverse_linear[3 + c] = r[1].inverse_linear[c];  // two equal rows
+    return std::string("instance 1: inverse linear part is singular but not all zeros");
+  });
+  records_case("mirrored flag", [](fmt::InstanceRecord* r, uint64_t) {
+    r[0].flags ^= 1u;
+    return std::string("instance 0: flags");
+  });
+  records_case("reserved", [](fmt::InstanceRecord* r, uint64_t) {
+    r[0].reserved = 7;
+    return std::string("instance 0: reserved field is 7");
+  });
+}
+
+// An instance table naming batching point 0x7FFFFFF0: plain rtpack-trace exited 0.
+TEST_F(HostileTables, InstanceTableNamingAPointOutOfRange) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kInstances, 0);
+  patch_chunk(p, index, [](uint8_t* chunk, size_t) {
+    section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[0].point = 0x7FFFFFF0u;
+  });
+  expect_everywhere(p, {label, "instance 0: batching point 2147483632 out of range"});
+}
+
+// Mesh segment 0's chunk relabelled as segment 1: it then holds meshes the mesh table places in another
+// segment. The tracer used them anyway (the hits as if intact, exit 0).
+TEST_F(HostileTables, MeshSegmentChunkIdNotTheMeshTables) {
+  const std::string p = copy(bases().forest);
+  patch_stored(p, chunk_of(p, fmt::ChunkKind::kMeshSegment, 0).first, [](uint8_t*, fmt::TocEntry& e) { e.id = 1; });
+  const std::string label = chunk_of(p, fmt::ChunkKind::kMeshSegment, 1).second;
+  expect_everywhere(p, {label, "the mesh table places the mesh in segment 0, not in segment 1"});
+}
+
+// A mesh-segment entry whose triangle count is not the mesh table's (its leaves index a different mesh).
+TEST_F(HostileTables, MeshSegmentEntryTrianglesNotTheMeshTables) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kMeshSegment, 0);
+  uint64_t tris = 0;
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    auto* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
+    tris = e[0].triangles;
+    e[0].triangles += 5;  // the prims stay in range: only the table can tell
+  });
+  expect_everywhere(p, {label, std::to_string(tris + 5) + " triangles, the mesh table says " + std::to_string(tris)});
+}
+
+// The first batching point with pieces, and its chunk index.
+size_t point_with_pieces(const std::string& path, uint64_t& id) {
+  PackageReader r(path);
+  for (size_t i = 0; i < r.toc().size(); ++i) {
+    if (r.toc()[i].kind != uint32_t(fmt::ChunkKind::kBatchingPoint)) continue;
+    AlignedBytes b = r.read(i);
+    uint64_t n = 0;
+    section<fmt::MeshEntry>(b.data(), SectionType::kMeshEntries, &n);
+    if (n >= 1) {
+      id = r.toc()[i].id;
+      return i;
+    }
+  }
+  throw std::runtime_error("no batching point with pieces");
+}
+
+// A piece's leaf prim past its scene mesh's triangles: rtpack-trace wrote it into the hit file.
+TEST_F(HostileTables, PieceLeafPrimPastItsMesh) {
+  expect_point_refused(bases().lantern, point_with_pieces, [](uint8_t* chunk) {  // unique meshes: stored as pieces
+    const auto* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
+    section<fmt::LeafBlock<kB>>(chunk, SectionType::kBlocks)[e[0].block_first].prim[0] = 0x7FFFFFFFu;
+    return "piece " + std::to_string(e[0].id) + " (entry 0): block 0 lane 0: prim 2147483647 out of range";
+  });
+}
+
+// A mesh slot naming another instanced mesh than the instance table gives its instance.
+TEST_F(HostileTables, MeshSlotNotTheInstancesMesh) {
+  expect_point_refused(bases().forest, point_with_instances, [](uint8_t* chunk) {
+    uint64_t nr = 0;
+    uint32_t* slots = section<uint32_t>(chunk, SectionType::kMeshSlots);
+    const auto* rec = section<fmt::InstanceRecord>(chunk, SectionType::kInstances, &nr);
+    for (uint64_t k = 0; k < nr; ++k) {
+      uint32_t& s = slots[rec[k].mesh];
+      if (s & fmt::kPieceBit) continue;
+      s ^= 1u;  // a neighbouring mesh id
+      return "instance " + std::to_string(k) + ": its mesh slot names mesh " + std::to_string(s);
+    }
+    ADD_FAILURE() << "no instance of an instanced mesh";
+    return std::string("?");
+  });
+}
+
+}  // namespace RTP_UNITY_ID
+}  // namespace
+}  // namespace rtp::test
