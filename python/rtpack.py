@@ -5,7 +5,9 @@ Reads the header, the table of contents and every chunk of a package into struct
 whose dtypes carry the field names and widths of the C++ structs in formats/*.h, checks every
 CRC-32C the format defines (header, TOC, each chunk's stored bytes), decompresses zstd chunks
 (and takes stored ones as they are), and parses each chunk's section table. A bad file raises a
-PackageError subclass whose message names what is wrong (and which chunk / section).
+PackageError (or one of its subclasses) whose message names what is wrong (and which chunk / section),
+never another exception: every size, offset and count is checked against the file before anything is
+allocated or decompressed, the metadata JSON's nesting depth before it is parsed.
 
     import rtpack
     with rtpack.Package("scene.rtp") as pkg:
@@ -15,7 +17,8 @@ PackageError subclass whose message names what is wrong (and which chunk / secti
         nodes = point.get(rtpack.SEC_NODES)          # WideNode<W>[]: nodes["lo"].shape == (n, 3, W)
 
 CLI:  python3 python/rtpack.py PKG [--json]   (reads and checks every chunk, prints a summary;
-exit 0 fine, 2 unreadable, 3 malformed -- as the C++ tools, docs/exit-codes.md).
+exit 0 fine, 2 usage (argparse), 3 a package that is malformed, unsupported or cannot be read, with one
+line "rtpack.py: error: PKG: MESSAGE" on stderr).
 
 Needs numpy and zstandard (Debian: python3-numpy, python3-zstandard) and, for fast checksums,
 crcmod (python3-crcmod). Not checked here: the cross-chunk structural invariants of SPEC §4.6
@@ -23,6 +26,7 @@ crcmod (python3-crcmod). Not checked here: the cross-chunk structural invariants
 """
 import json
 import os
+import re
 import stat
 import sys
 
@@ -72,8 +76,11 @@ except ImportError:  # pragma: no cover - depends on the machine
 MAGIC = b"RTPACK\r\n"
 VERSION_MAJOR, VERSION_MINOR = 7, 0
 ALIGNMENT = 4096
+WIDTHS = (4, 8, 16)  # SPEC §1.1: the BVH width W and the leaf width B are each one of these
 CHUNK_MAGIC = 0x48435452  # "RTCH"
 MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
+MAX_JSON_DEPTH = 256  # arrays/objects nested deeper in the metadata are refused (lib/core/json_checked.h)
+READ_PIECE = 1 << 20  # zstd input and padding checks go through memory in pieces of this size
 FLAG_NORMALS, FLAG_UVS, FLAG_DAG = 1, 2, 4
 COMPRESSION_NONE, COMPRESSION_ZSTD = 0, 1
 CHILD_EMPTY, LEAF_BIT = 0xFFFFFFFF, 0x80000000  # ChildRef (SPEC §2.1)
@@ -213,24 +220,27 @@ def section_dtype(sec_type, w, b):
 def dag_node(words, off):
     """The children of the DAG node at word offset `off`: a list of (child, what, value) with what
     "full" (value None), "inline" (value = the 64-bit leaf mask) or "ref" (value = the reference one
-    level below: a word offset, or at level 1 a leaf index into section 24). Raises IndexError past
-    the end of `words`."""
+    level below: a word offset, or at level 1 a leaf index into section 24). Raises MalformedError
+    when the node (its head word or a child's words) is not inside `words`."""
+    off = int(off)
+    if not 0 <= off < len(words):
+        raise MalformedError(f"DAG node at word {off}: outside the pool's {len(words)} words")
     head = int(words[off])
     cm, fm, im = head & 0xFF, head >> 8 & 0xFF, head >> 16 & 0xFF
+    kids = [(c, "full" if fm >> c & 1 else "inline" if im >> c & 1 else "ref") for c in range(8) if cm >> c & 1]
+    end = off + 1 + sum({"full": 0, "inline": 2, "ref": 1}[what] for _, what in kids)
+    if end > len(words):
+        raise MalformedError(f"DAG node at word {off}: runs past the pool's {len(words)} words")
     out, at = [], off + 1
-    for c in range(8):
-        if not cm >> c & 1:
-            continue
-        if fm >> c & 1:
-            out.append((c, "full", None))
-        elif im >> c & 1:
-            out.append((c, "inline", int(words[at]) | int(words[at + 1]) << 32))
+    for c, what in kids:
+        if what == "full":
+            out.append((c, what, None))
+        elif what == "inline":
+            out.append((c, what, int(words[at]) | int(words[at + 1]) << 32))
             at += 2
         else:
-            out.append((c, "ref", int(words[at])))
+            out.append((c, what, int(words[at])))
             at += 1
-    if at > len(words):
-        raise IndexError(f"DAG node at word {off} runs past the {len(words)} words")
     return out
 
 
@@ -312,6 +322,50 @@ def parse_chunk(raw, kind, label, w, b):
         else:
             sections[t] = np.frombuffer(raw, dt, cnt, off)
     return h, table, sections
+
+
+def _unzstd(stored, raw_size, label):
+    """The one zstd frame `stored`, which must decode to exactly raw_size bytes (already checked against
+    the frame header and SPEC §3's ratio). Neither size is believed before the bytes exist, as in the C++
+    reader: the input goes in pieces and the output only grows with what the frame really decodes to,
+    refused as soon as it passes raw_size."""
+    d = zstandard.ZstdDecompressor().decompressobj()
+    view, parts, done, fed = memoryview(stored), [], 0, 0
+    try:
+        while fed < len(view) and not d.eof:
+            part = d.decompress(view[fed:fed + READ_PIECE])
+            fed = min(len(view), fed + READ_PIECE)
+            done += len(part)
+            if done > raw_size:
+                raise MalformedError(f"{label}: zstd decompression failed (the frame decodes to more than "
+                                     f"raw_size {raw_size})")
+            parts.append(part)
+    except zstandard.ZstdError as ex:
+        raise MalformedError(f"{label}: zstd decompression failed ({ex})") from None
+    after = len(d.unused_data) + len(view) - fed
+    if done != raw_size or not d.eof or after:
+        raise MalformedError(f"{label}: zstd decompression failed ({done} bytes of {raw_size}, "
+                             f"{after} bytes after the frame)")
+    return b"".join(parts)
+
+
+def check_json_depth(text, what):
+    """Refuses JSON text (bytes) nesting arrays/objects more than MAX_JSON_DEPTH levels deep, before any
+    parser sees it (json.loads recurses: 100000 '[' would be a RecursionError). As jsonc::check_depth:
+    brackets inside strings (escapes included) do not count, the message gives the byte offset."""
+    if text.count(b"[") + text.count(b"{") <= MAX_JSON_DEPTH:  # cannot be deeper: the common case
+        return
+    blanked = _JSON_STRING.sub(lambda m: bytes(len(m[0])), text)  # same length: offsets stay true
+    b = np.frombuffer(blanked, np.uint8)
+    step = np.isin(b, _JSON_OPEN).astype(np.int64) - np.isin(b, _JSON_CLOSE)
+    deep = np.flatnonzero(np.cumsum(step) > MAX_JSON_DEPTH)
+    if len(deep):
+        raise MalformedError(f"{what}JSON nested more than {MAX_JSON_DEPTH} levels deep (at byte {int(deep[0])})")
+
+
+# A JSON string: from its quote to the next unescaped quote (or the end of the text, unterminated).
+_JSON_STRING = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"?', re.DOTALL)
+_JSON_OPEN, _JSON_CLOSE = np.frombuffer(b"[{", np.uint8), np.frombuffer(b"]}", np.uint8)
 
 
 # ---- the package -------------------------------------------------------------------------------------
@@ -397,17 +451,32 @@ class Package:
         if tcrc != h["toc_crc32c"]:
             raise ChecksumError(f"table of contents checksum mismatch (stored {int(h['toc_crc32c']):08x}, "
                                 f"computed {tcrc:08x})")
-        prefix = np.dtype({"names": list(TOC_ENTRY.names), "itemsize": tsize,
-                           "formats": [TOC_ENTRY.fields[n][0] for n in TOC_ENTRY.names],
-                           "offsets": [TOC_ENTRY.fields[n][1] for n in TOC_ENTRY.names]})
-        self.toc = np.frombuffer(toc_bytes, prefix, tcount).astype(TOC_ENTRY)
+        # Each entry's 48-byte prefix, whatever toc_entry_size (up to 2^32 - 1) is: no dtype of that size.
+        rows = np.frombuffer(toc_bytes, np.uint8).reshape(tcount, tsize)[:, :TOC_ENTRY.itemsize]
+        self.toc = rows.copy().view(TOC_ENTRY).reshape(tcount)  # a writable copy, as before
         for i, e in enumerate(self.toc):
             off, stored = int(e["offset"]), int(e["stored_size"])
             if off % ALIGNMENT or off < ALIGNMENT or stored > toff or off > toff - stored:
                 raise MalformedError(f"{self.label(i)}: out of bounds ({stored} bytes)")
+            self._check_sizes(i)
         self.version = f"{major}.{minor}"
         self.flags = int(h["flags"])
         self.bvh_width, self.leaf_width = int(h["bvh_width"]), int(h["leaf_width"])
+        if self.bvh_width not in WIDTHS or self.leaf_width not in WIDTHS:  # SPEC §1.1; they size every dtype
+            raise MalformedError(f"header: unsupported BVH width {self.bvh_width} / leaf width {self.leaf_width}")
+
+    # SPEC §3, as PackageReader::check_sizes: every declared raw size checked when the TOC is read, so that
+    # nothing is ever sized from one the reader would refuse at decode.
+    def _check_sizes(self, i):
+        e = self.toc[i]
+        raw, stored = int(e["raw_size"]), int(e["stored_size"])
+        if int(e["compression"]) == COMPRESSION_NONE:
+            if raw != stored:
+                raise MalformedError(f"{self.label(i)}: raw_size {raw} differs from the {stored} stored bytes of an "
+                                     "uncompressed chunk")
+        elif raw > MAX_CHUNK_RATIO * stored + MAX_CHUNK_SLACK:
+            raise MalformedError(f"{self.label(i)}: raw_size {raw} is more than {MAX_CHUNK_RATIO} times the "
+                                 f"{stored} stored bytes (the limit of formats/SPEC.md §3)")
 
     def label(self, i):
         """The C++ reader's name for chunk i: "batching point 3 (chunk #9 at offset 40960)"."""
@@ -424,7 +493,7 @@ class Package:
         return self._pread(int(e["offset"]), int(e["stored_size"]), self.label(i))
 
     # SPEC §3: the CRC of the stored bytes is checked before decompression; a zstd frame must declare
-    # raw_size as its content size, and raw_size <= 1024 * stored_size + 2^20.
+    # raw_size as its content size (raw_size <= 1024 * stored_size + 2^20 was checked at open).
     def read(self, i):
         """Chunk i's raw (decompressed) bytes, CRC-checked."""
         e, label = self.toc[i], self.label(i)
@@ -435,9 +504,7 @@ class Package:
                                 "corrupt chunk")
         raw_size, comp = int(e["raw_size"]), int(e["compression"])
         if comp == COMPRESSION_NONE:
-            if raw_size != len(stored):
-                raise MalformedError(f"{label}: raw size differs from stored size")
-            return stored
+            return stored  # raw_size = stored_size (_check_sizes)
         if comp != COMPRESSION_ZSTD:
             raise MalformedError(f"{label}: unknown compression {comp}")
         try:
@@ -447,18 +514,7 @@ class Package:
         if declared != raw_size:
             what = "no size" if declared == -1 else declared if isinstance(declared, str) else f"{declared} bytes"
             raise MalformedError(f"{label}: zstd frame declares {what}, the table of contents raw_size {raw_size}")
-        if raw_size > MAX_CHUNK_RATIO * len(stored) + MAX_CHUNK_SLACK:
-            raise MalformedError(f"{label}: raw_size {raw_size} is more than {MAX_CHUNK_RATIO} times the "
-                                 f"{len(stored)} stored bytes (the limit of formats/SPEC.md §3)")
-        d = zstandard.ZstdDecompressor().decompressobj()
-        try:
-            out = d.decompress(stored)
-        except zstandard.ZstdError as ex:
-            raise MalformedError(f"{label}: zstd decompression failed ({ex})") from None
-        if len(out) != raw_size or not d.eof or d.unused_data:
-            raise MalformedError(f"{label}: zstd decompression failed ({len(out)} bytes of {raw_size}, "
-                                 f"{len(d.unused_data)} bytes after the frame)")
-        return out
+        return _unzstd(stored, raw_size, label)  # raw_size within SPEC §3's ratio (_check_sizes)
 
     def chunk(self, i):
         """Chunk i read, checked and parsed into a Chunk. Unknown kinds: raw bytes only (no sections)."""
@@ -474,12 +530,20 @@ class Package:
         i = self.find(kind, 0)
         return None if i is None else self.chunk(i)
 
+    def require(self, kind):
+        """The resident chunk (kind, id 0), parsed; MalformedError naming it when the package has none."""
+        c = self.resident(kind)
+        if c is None:
+            raise MalformedError(f"missing {kind_name(kind)} chunk (kind {int(kind)}, id 0): the table of "
+                                 f"contents has {len(self.toc)} entries, none of them this chunk")
+        return c
+
     def instance_records(self):
         """Every scene instance's record in instance-table order (INSTANCE_RECORD[]), read from the batching
         point and local index its InstanceRef names (SPEC §2.5: records live only in the points since 5.0).
         `mesh` is the scene mesh, not the stored point-local slot; an instance no point holds (a mesh without
         triangles) is an all-zero row. Raises MalformedError when a place holds another instance."""
-        refs = self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)
+        refs = self.require(KIND_INSTANCES).get(SEC_INSTANCE_REFS)
         out = np.zeros(len(refs), dtype=INSTANCE_RECORD)
         placed = np.nonzero(refs["point"] != NO_POINT)[0]
         placed = placed[np.argsort(refs["point"][placed], kind="stable")]  # grouped by point, one pass
@@ -503,13 +567,15 @@ class Package:
         return out
 
     def metadata(self):
-        """The metadata JSON (SPEC §4.1, section 14) as a dict."""
-        c = self.resident(KIND_METADATA)
-        if c is None:
-            raise MalformedError("missing metadata chunk")
+        """The metadata JSON (SPEC §4.1, section 14) as a dict; its nesting depth checked first."""
+        c = self.require(KIND_METADATA)
+        text = c.get(SEC_JSON).tobytes()
+        check_json_depth(text, f"{c.label}: metadata ")
+        # ValueError: also an integer of more digits than int() takes; RecursionError: cannot happen after
+        # check_json_depth (256 levels), unless the caller is itself deep in recursion.
         try:
-            meta = json.loads(c.get(SEC_JSON).tobytes().decode("utf-8"))
-        except (UnicodeDecodeError, ValueError) as ex:
+            meta = json.loads(text.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError) as ex:
             raise MalformedError(f"{c.label}: metadata is not UTF-8 JSON ({ex})") from None
         if not isinstance(meta, dict):
             raise MalformedError(f"{c.label}: metadata is not a JSON object")
@@ -523,12 +589,12 @@ class Package:
     # SPEC §1: zeros after the 128-byte header up to 4096 and between chunks, chunks not overlapping,
     # the file ending with the TOC (the bytes no checksum covers); messages as rtpack-inspect --verify's.
     def check_padding(self):
-        def zeros(start, end, what):
-            if end > start:
-                block = np.frombuffer(self._pread(start, end - start, what), np.uint8)
+        def zeros(start, end, what):  # in pieces: a padding's size is the file's word, not memory's
+            for at in range(start, end, READ_PIECE):
+                block = np.frombuffer(self._pread(at, min(READ_PIECE, end - at), what), np.uint8)
                 nz = np.flatnonzero(block)
                 if len(nz):
-                    raise MalformedError(f"{what}: byte {start + int(nz[0])} of the file is not 0")
+                    raise MalformedError(f"{what}: byte {at + int(nz[0])} of the file is not 0")
         zeros(HEADER.itemsize, ALIGNMENT, "header block padding (bytes 128..4095)")
         end, after = ALIGNMENT, "the header block"
         for i in np.argsort(self.toc["offset"], kind="stable"):
@@ -574,13 +640,16 @@ class Package:
             k["chunks"] += 1
             k["raw_bytes"] += int(e["raw_size"])
             k["stored_bytes"] += int(e["stored_size"])
-        descs = self.resident(KIND_BATCHING_POINTS)
+        descs = self.require(KIND_BATCHING_POINTS)
         d = descs.get(SEC_POINT_DESCS)
         grids = descs.get(SEC_POINT_GRIDS, required=False)
         pool = self.resident(KIND_DAG_POOL)
-        meshes = self.resident(KIND_MESHES).get(SEC_MESH_TABLE)
-        top = self.resident(KIND_TOP_LEVEL_BVH).get(SEC_TOP_NODES)
+        meshes = self.require(KIND_MESHES).get(SEC_MESH_TABLE)
+        top = self.require(KIND_TOP_LEVEL_BVH).get(SEC_TOP_NODES)
         meta = self.metadata()
+        cameras = meta.get("cameras", [])
+        if not isinstance(cameras, list):
+            raise MalformedError(f"{self.label(self.find(KIND_METADATA))}: metadata /cameras: not an array")
         return {
             "file": self.path, "package_bytes": self.file_size, "version": self.version,
             "attributes": [n for bit, n in ((FLAG_NORMALS, "normal"), (FLAG_UVS, "uv")) if self.flags & bit],
@@ -592,36 +661,17 @@ class Package:
             "point_instances": int(d["instance_count"].sum()),
             "mesh_segments": int((self.toc["kind"] == KIND_MESH_SEGMENT).sum()),
             "meshes": len(meshes), "segment_meshes": int((meshes["segment"] != NO_SEGMENT).sum()),
-            "instances": len(self.resident(KIND_INSTANCES).get(SEC_INSTANCE_REFS)),
+            "instances": len(self.require(KIND_INSTANCES).get(SEC_INSTANCE_REFS)),
             "top_level": {"nodes": len(top), "max_depth": int(top["depth"].max()) + 1 if len(top) else 0},
             "dag": {"present": pool is not None, "grids": 0 if grids is None else len(grids),
                     "pool_bytes": 0 if pool is None else pool.get(SEC_DAG_NODES).nbytes + pool.get(SEC_DAG_LEAVES).nbytes},
             "source": meta.get("source"), "tool_version": meta.get("tool_version"),
-            "cameras": len(meta.get("cameras", [])),
+            "cameras": len(cameras),
         }
 
 
-def main(argv=None):
-    import argparse
-    ap = argparse.ArgumentParser(description="Read and check an rtpack package (every CRC, every chunk); "
-                                             "print a summary.")
-    ap.add_argument("package")
-    ap.add_argument("--json", action="store_true", help="print the summary as JSON")
-    a = ap.parse_args(argv)
-    try:
-        with Package(a.package) as pkg:
-            pkg.verify()
-            s = pkg.summary()
-    except PackageError as ex:
-        print(f"error: {a.package}: {ex}", file=sys.stderr)
-        return 3
-    except OSError as ex:
-        print(f"error: {a.package}: {ex.strerror or ex}", file=sys.stderr)
-        return 2
-    s["checked"] = "every checksum, zstd frame and section table"
-    if a.json:
-        print(json.dumps(s, indent=2))
-        return 0
+def print_summary(s):
+    """The summary dict of Package.summary() as text, on stdout."""
     b = s["bounds"]
     print(f"package       {s['file']}: {s['package_bytes']:,} bytes, version {s['version']}, {s['toc_entries']} chunks")
     print(f"  widths      W = {s['bvh_width']}, B = {s['leaf_width']}; attributes: "
@@ -637,6 +687,33 @@ def main(argv=None):
         print(f"  {name:<28} {k['chunks']:6} chunks {k['raw_bytes']:>14,} raw {k['stored_bytes']:>14,} stored")
     print(f"  source      {s['source']} ({s['tool_version']}), {s['cameras']} cameras")
     print("ok: " + s["checked"])
+
+
+def main(argv=None):
+    """The command line: 0 read and checked, 2 usage (argparse), 3 a package that cannot be read or is
+    malformed (one line on stderr, no traceback)."""
+    import argparse
+    ap = argparse.ArgumentParser(prog="rtpack.py", description="Read and check an rtpack package (every CRC, "
+                                                               "every chunk); print a summary.")
+    ap.add_argument("package")
+    ap.add_argument("--json", action="store_true", help="print the summary as JSON")
+    a = ap.parse_args(argv)
+    try:
+        with Package(a.package) as pkg:
+            pkg.verify()
+            s = pkg.summary()
+    except (PackageError, OSError) as ex:
+        why = ex.strerror if isinstance(ex, OSError) and ex.strerror else str(ex)
+        print(f"{ap.prog}: error: {a.package}: {why}".replace("\n", " "), file=sys.stderr)
+        return 3
+    s["checked"] = "every checksum, zstd frame and section table"
+    # Metadata strings (source, tool_version) are the package's: never an encoding error on printing them.
+    if hasattr(sys.stdout, "reconfigure"):
+        sys.stdout.reconfigure(errors="backslashreplace")
+    if a.json:
+        print(json.dumps(s, indent=2))
+    else:
+        print_summary(s)
     return 0
 
 
