@@ -28,14 +28,16 @@ namespace fs = std::filesystem;
 constexpr int kW = 8, kB = 8;
 
 // Packages written once per run: the forest sample (mesh segments, pieces, several batching points)
-// uncompressed and compressed, and Lantern with attribute chunks, uncompressed.
+// uncompressed and compressed, in large points that cull by instance boxes, and Lantern with attribute
+// chunks, uncompressed.
 struct Bases {
   fs::path dir = temp_dir("hostile_bases");
-  std::string forest, forest_zstd, lantern;
+  std::string forest, forest_zstd, forest_boxes, lantern;
   Bases() {
     const Scene forest_scene = import_gltf((source_dir() / "samples/generated/forest-small.glb").string());
     forest = write(forest_scene, "forest.rtp", 60000, 0);
     forest_zstd = write(forest_scene, "forest-zstd.rtp", 60000, 9);
+    forest_boxes = write(forest_scene, "forest-boxes.rtp", 1000000, 0);
     ImportOptions io;
     io.normals = io.uvs = true;
     Scene lantern_scene = import_gltf((source_dir() / "samples/khronos/Lantern/glTF/Lantern.gltf").string(), io);

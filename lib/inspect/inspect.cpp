@@ -15,6 +15,7 @@
 #include "core/math.h"
 #include "reader/camera.h"
 #include "reader/check_chunks.h"
+#include "reader/check_culling.h"
 #include "layout/chunk_io.h"
 
 namespace rtp {
@@ -265,6 +266,9 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kBatchingPoint), label);
   // Throws (the chunk becomes a problem) unless every index and range a walk follows is sound.
   const PointSections<W, B> sec = decode_point<W, B>(v, scene_tables(c.res));
+  const uint64_t point = c.r.toc()[i].id;
+  if (c.res.grids_ok && c.res.dag_ok && point < c.res.grids.size())
+    check_instance_boxes<W>(c.res.grids[point], dag_view(c.r, c.res), sec.instance_nodes, sec.n_instance_nodes, label);
   const uint64_t n_te = 1, n_in = sec.n_instance_nodes, n_ids = sec.n_instance_ids, ne = sec.n_entries;
   const fmt::MeshEntry* te = sec.instance_bvh;
   const fmt::WideNode<W>* inodes = sec.instance_nodes;
@@ -528,7 +532,7 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
        {{"min", {h.bounds_lo[0], h.bounds_lo[1], h.bounds_lo[2]}}, {"max", {h.bounds_hi[0], h.bounds_hi[1], h.bounds_hi[2]}}}}};
   j["sizes"] = sizes(c, tris);
   j["bytes_per_unique_triangle"] = double(h.file_size) / tris;
-  j["dag"] = dag_report(reader, c.res, c.problems, c.ver != nullptr);
+  j["dag"] = dag_report(reader, c.res, c.problems);
   j["dag_pool_bytes"] = j["dag"]["pool_bytes"];
   j["instances"] = c.res.instances.size();
   j["meshes"] = c.res.meshes.size();

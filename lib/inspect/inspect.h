@@ -18,6 +18,7 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "inspect/inspect_attributes.h"
+#include "layout/dag_query.h"
 #include "reader/reader.h"
 
 namespace rtp {
@@ -164,7 +165,9 @@ struct Resident {
 // resident sections alone. Structural DAG problems are reported in every mode, as the tracer refuses
 // them (SPEC §4.6): pool chunk iff grids iff header flag, one grid per batching point, every grid's DAG
 // sound (voxel::check_dag); with `verify` also every grid covering its point's bounds.
-nlohmann::json dag_report(const PackageReader& reader, const Resident& resident, Problems& problems, bool verify);
+// The pool as the DAG queries read it (its cull nodes with the header's width).
+voxel::DagView dag_view(const PackageReader& reader, const Resident& resident);
+nlohmann::json dag_report(const PackageReader& reader, const Resident& resident, Problems& problems);
 
 // One mesh segment: its entries and, per entry, the prims of its leaves (non-padding lanes).
 struct SegmentData {

@@ -2,8 +2,8 @@
 // the shared pool (bytes, nodes, leaves, resolutions, sharing against each point's DAG built alone,
 // set cells) and its invariants, in every mode: the pool chunk exists iff the grids section does iff
 // the header says kFlagDag; one grid per batching point; every grid sound (voxel::check_dag: fields,
-// every reachable reference in range, no malformed node or leaf); with --verify also covering its
-// point's bounds.
+// every reachable reference in range, no malformed node or leaf), covering its point's bounds and not
+// empty for a point with triangles (reader/check_culling.h: what the tracers refuse at open).
 #include <bit>
 #include <cmath>
 #include <map>
@@ -11,6 +11,7 @@
 #include <unordered_set>
 
 #include "inspect/inspect.h"
+#include "reader/check_culling.h"
 #include "layout/dag_query.h"
 
 namespace rtp::inspect_detail {
@@ -86,18 +87,6 @@ void check_presence(const PackageReader& r, const Resident& res, Problems& out) 
             " culling DAGs");
 }
 
-bool box_empty(const fmt::BatchingPointDesc& d) { return !(d.lo[0] <= d.hi[0] && d.lo[1] <= d.hi[1] && d.lo[2] <= d.hi[2]); }
-
-// The grid's box must contain its batching point's descriptor bounds (else geometry outside it would
-// be culled). Descriptor bounds are float and the grid is float: exact comparison in double.
-bool covers(const fmt::DagGrid& g, const fmt::BatchingPointDesc& d) {
-  for (int a = 0; a < 3; ++a) {
-    const double lo = g.origin[a], hi = double(g.origin[a]) + double(g.cell) * g.resolution;
-    if (!(lo <= d.lo[a] && d.hi[a] <= hi)) return false;
-  }
-  return true;
-}
-
 std::string grid_name(const fmt::DagGrid& g) {
   return "root " +
          (g.root == fmt::kDagEmpty  ? std::string("empty")
@@ -108,20 +97,28 @@ std::string grid_name(const fmt::DagGrid& g) {
 
 }  // namespace
 
-nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems& problems, bool verify) {
+voxel::DagView dag_view(const PackageReader& r, const Resident& res) {
+  voxel::DagView view{res.dag_words.data(), res.dag_words.size(), res.dag_leaves.data(), res.dag_leaves.size()};
+  if (res.cull_count) view.cull = res.cull_nodes.data(), view.cull_count = res.cull_count, view.cull_width = r.header().bvh_width;
+  return view;
+}
+
+nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems& problems) {
   check_presence(r, res, problems);  // the tracer refuses the same (package_tracer.cpp load_dags)
   const uint64_t pool_bytes = res.dag_ok ? res.dag_words.size() * 4 + res.dag_leaves.size() * 8 : 0;
   nlohmann::json j = {{"present", res.dag_present || res.grids_present},
                       {"pool_bytes", pool_bytes},
                       {"node_words", res.dag_words.size()},
                       {"leaves", res.dag_leaves.size()}};
-  voxel::DagView view{res.dag_words.data(), res.dag_words.size(), res.dag_leaves.data(), res.dag_leaves.size()};
-  if (res.cull_count) view.cull = res.cull_nodes.data(), view.cull_count = res.cull_count, view.cull_width = r.header().bvh_width;
+  const voxel::DagView view = dag_view(r, res);
   CellCounter counter(view);
   std::map<uint32_t, uint64_t> resolutions;
   uint64_t separate = 0, cells = 0, total_cells = 0, sound = 0, malformed = 0, unchecked = 0, empty = 0, full = 0, boxes = 0;
   for (size_t p = 0; p < res.grids.size(); ++p) {
     const fmt::DagGrid& g = res.grids[p];
+    // What the tracers refuse at open: a grid that would cull a hit.
+    if (const std::string e = p < res.descs.size() ? grid_cover_problem(g, res.descs[p]) : ""; !e.empty())
+      problems.add(res.descs_label + ": batching point " + str(p) + ": " + e);
     if (g.resolution == fmt::kDagBoxes) {  // 7.0: the point's instance boxes, no voxels
       ++boxes;
       if (!res.dag_ok) {
@@ -148,9 +145,6 @@ nlohmann::json dag_report(const PackageReader& r, const Resident& res, Problems&
       problems.add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) + "): " + bad);
       continue;
     }
-    if (verify && p < res.descs.size() && !box_empty(res.descs[p]) && !covers(g, res.descs[p]))
-      problems.add(res.descs_label + ": batching point " + str(p) + ": grid (" + grid_name(g) +
-                   ") does not cover the batching point's bounds");
     const bool needs_pool = g.root != fmt::kDagEmpty && g.root != fmt::kDagFull;
     if (needs_pool && !res.dag_ok) {  // missing or unreadable pool: reported elsewhere
       ++unchecked;

@@ -19,6 +19,7 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
+#include "reader/check_culling.h"
 #include "reader/scene_tables.h"
 #include "layout/chunk_io.h"
 #include "layout/dag_query.h"
@@ -130,6 +131,7 @@ Resident read_resident(const PackageReader& r) {
     s.dag.cull = v.get_raw(fmt::SectionType::kCullNodes, fmt::cull_node_bytes(s.dag.cull_width), s.dag.cull_count, false);
     const std::string e = voxel::check_dags(s.grids, n_grids, s.dag);
     if (!e.empty()) fail_invalid(v.label() + ": culling DAG of " + e);
+    check_grids_cover_points(s.grids, descs, n_grids, dv.label());
   }
   s.tables = read_resident_tables(r, s.n_points);
   return s;
@@ -302,7 +304,8 @@ class Batched final : public OutOfCoreTracer {
     const std::string label = chunk_label(e, index);
     if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) {
       ChunkView v(b.data(), b.size(), e.kind, label);
-      points_[e.id].s = decode_point<W, B>(v, res_.tables.view);
+      const PointSections<W, B>& d = points_[e.id].s = decode_point<W, B>(v, res_.tables.view);
+      if (res_.grids) check_instance_boxes<W>(res_.grids[e.id], res_.dag, d.instance_nodes, d.n_instance_nodes, label);
       return;
     }
     ChunkView v(b.data(), b.size(), e.kind, label);

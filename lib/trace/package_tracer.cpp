@@ -19,6 +19,7 @@
 #include "formats/dag.h"
 #include "formats/top_level.h"
 #include "reader/check_chunks.h"
+#include "reader/check_culling.h"
 #include "reader/scene_tables.h"
 #include "layout/chunk_io.h"
 #include "layout/dag_query.h"
@@ -113,7 +114,11 @@ class InCoreTracer final : public PackageTracer {
       const std::string& label = labels_.back();
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
       Point<W, B>& pt = points_[p];
-      const PointSections<W, B> s = checked([&] { return decode_point<W, B>(v, tables_.view); });
+      const PointSections<W, B> s = checked([&] {
+        const PointSections<W, B> d = decode_point<W, B>(v, tables_.view);
+        if (grids_) check_instance_boxes<W>(grids_[p], dag_, d.instance_nodes, d.n_instance_nodes, label);
+        return d;
+      });
       pt.global_ids = s.global_ids;
       pt.meshes.resize(s.n_slots);
       for (uint64_t k = 0; k < s.n_slots; ++k) {
@@ -207,6 +212,12 @@ class InCoreTracer final : public PackageTracer {
     dag_.cull_width = uint32_t(W);
     const std::string e = checked([&] { return voxel::check_dags(grids_, n_grids, dag_); });
     if (!e.empty()) fail_invalid(labels_.back() + ": culling DAG of " + e);
+    uint64_t n_descs = 0;
+    const auto* descs = dv.get<fmt::BatchingPointDesc>(fmt::SectionType::kPointDescs, n_descs);
+    checked([&] {
+      check_grids_cover_points(grids_, descs, n_grids, desc_label);
+      return 0;
+    });
   }
 
   // Molenaar 2019 §4.2: before a batching point's BVH is walked, its DAG is tested along the ray's
