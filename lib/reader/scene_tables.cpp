@@ -18,19 +18,21 @@ const AlignedBytes& read_table(const PackageReader& r, fmt::ChunkKind kind, Alig
 
 }  // namespace
 
-ResidentTables read_resident_tables(const PackageReader& r, uint64_t points) {
+ResidentTables read_resident_tables(const PackageReader& r) {
   ResidentTables t;
   for (const fmt::TocEntry& e : r.toc()) t.n_segments += e.kind == uint32_t(fmt::ChunkKind::kMeshSegment);
-  std::string mesh_label, instance_label;
-  const AlignedBytes& mb = read_table(r, fmt::ChunkKind::kMeshes, t.mesh_bytes, mesh_label);
-  const ChunkView mv(mb.data(), mb.size(), uint32_t(fmt::ChunkKind::kMeshes), mesh_label);
+  const AlignedBytes& mb = read_table(r, fmt::ChunkKind::kMeshes, t.mesh_bytes, t.mesh_label);
+  const ChunkView mv(mb.data(), mb.size(), uint32_t(fmt::ChunkKind::kMeshes), t.mesh_label);
   t.view.meshes = mv.get<fmt::MeshInfo>(fmt::SectionType::kMeshTable, t.view.n_meshes);
-  check_mesh_table(t.view.meshes, t.view.n_meshes, kUnknownCount, kUnknownCount, t.n_segments, mesh_label);
-  const AlignedBytes& ib = read_table(r, fmt::ChunkKind::kInstances, t.instance_bytes, instance_label);
-  const ChunkView iv(ib.data(), ib.size(), uint32_t(fmt::ChunkKind::kInstances), instance_label);
+  const AlignedBytes& ib = read_table(r, fmt::ChunkKind::kInstances, t.instance_bytes, t.instance_label);
+  const ChunkView iv(ib.data(), ib.size(), uint32_t(fmt::ChunkKind::kInstances), t.instance_label);
   t.view.instances = iv.get<fmt::InstanceRef>(fmt::SectionType::kInstanceRefs, t.view.n_instances);
-  check_instance_table(t.view.instances, t.view.n_instances, t.view.n_meshes, points, instance_label);
   return t;
+}
+
+void check_resident_tables(const ResidentTables& t, uint64_t points) {
+  check_mesh_table(t.view.meshes, t.view.n_meshes, kUnknownCount, kUnknownCount, t.n_segments, t.mesh_label);
+  check_instance_table(t.view.instances, t.view.n_instances, t.view.n_meshes, points, t.instance_label);
 }
 
 }  // namespace rtp

@@ -133,7 +133,8 @@ Resident read_resident(const PackageReader& r) {
     if (!e.empty()) fail_invalid(v.label() + ": culling DAG of " + e);
     check_grids_cover_points(s.grids, descs, n_grids, dv.label());
   }
-  s.tables = read_resident_tables(r, s.n_points);
+  s.tables = read_resident_tables(r);
+  check_resident_tables(s.tables, s.n_points);
   return s;
 }
 

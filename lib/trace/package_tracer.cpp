@@ -90,12 +90,20 @@ class InCoreTracer final : public PackageTracer {
     });
     load_dags(r, dv, n_points, load, checked);
     // Every geometry chunk is checked against the instance and mesh tables (hits report scene instance ids).
-    tables_ = checked([&] { return read_resident_tables(r, n_points); });
-    for (fmt::ChunkKind k : {fmt::ChunkKind::kInstances, fmt::ChunkKind::kMeshes}) {
-      ++load_.chunks;
-      load_.stored_bytes += toc[size_t(r.find(k, 0))].stored_size;
+    {
+      const auto t0 = Clock::now();
+      tables_ = read_resident_tables(r);
+      load_.read_seconds += seconds_since(t0);
+      for (fmt::ChunkKind k : {fmt::ChunkKind::kInstances, fmt::ChunkKind::kMeshes}) {
+        ++load_.chunks;
+        load_.stored_bytes += toc[size_t(r.find(k, 0))].stored_size;
+      }
+      load_.raw_bytes += tables_.bytes();
     }
-    load_.raw_bytes += tables_.bytes();
+    checked([&] {
+      check_resident_tables(tables_, n_points);
+      return 0;
+    });
     // Segments: mesh id -> view.
     std::map<uint32_t, MeshBvhView<W, B>> segment_meshes;
     for (size_t i = 0; i < toc.size(); ++i) {
