@@ -1,7 +1,9 @@
 #pragma once
 // rtpack-inspect --verify for attribute chunks (formats/SPEC.md §4.4): each one parsed and checked on
-// its own (ranges, indices, unit normals, finite uvs, ascending triangle ids), then matched against
-// the geometry chunk it belongs to and the mesh table's attribute flags.
+// its own (decode_attributes: ranges, indices, unit normals, finite uvs, ascending triangle ids), then
+// matched against the geometry chunk it belongs to and the mesh table (check_attribute_geometry): the
+// same checks, and the same messages, as the attribute lookup of rtpack-trace --shading
+// (lib/reader/attribute_lookup.h). Here also the mesh table's and the header's attribute flags.
 #include <cstdint>
 #include <map>
 #include <string>
@@ -11,6 +13,7 @@
 #include "core/aligned.h"
 #include "formats/chunk.h"
 #include "formats/package.h"
+#include "reader/attribute_lookup.h"
 
 namespace rtp {
 class Problems;
@@ -18,15 +21,11 @@ class Problems;
 
 namespace rtp::inspect_detail {
 
-// What an attribute entry must agree with: one MeshEntry of the geometry chunk.
-struct GeometryEntry {
-  uint32_t id = 0;    // MeshEntry id
-  uint32_t mesh = 0;  // scene mesh (segment: = id; piece: its instance's mesh), or 0xFFFFFFFF
-  uint64_t triangles = 0;
-  uint64_t prim_hash = 0;  // pieces: hash of the set of leaf prims (0 for whole meshes)
-};
+// What an attribute entry must agree with: one MeshEntry of the geometry chunk (id, mesh, triangles,
+// prim_hash: the PrimSetHash of a piece's leaf prims, 0 for whole meshes).
+using GeometryEntry = AttributeGeometry;
 
-uint64_t prim_set_hash(const std::vector<uint32_t>& prims);  // order-independent
+uint64_t prim_set_hash(const std::vector<uint32_t>& prims);  // order-independent (PrimSetHash)
 
 class AttributeChecker {
  public:
@@ -41,10 +40,14 @@ class AttributeChecker {
  private:
   struct Seen {
     std::string label;
+    uint32_t kind = 0;  // 18 or 19
     std::vector<fmt::AttributeEntry> entries;
-    std::vector<uint64_t> tri_hash;  // per entry with tri ids
-    bool ok = false;
+    std::vector<AttributeTriIds> id_sets;  // per entry
+    bool ok = false;                       // decode_attributes passed
   };
+  // The mesh table's attribute flags against the entries; returns the header flags they imply.
+  static uint64_t check_flags(const Seen& s, const std::vector<GeometryEntry>& geometry, const std::vector<fmt::MeshInfo>& meshes,
+                              Problems& out);
   std::map<std::pair<uint32_t, uint64_t>, std::vector<GeometryEntry>> geometry_;  // keyed by geometry kind
   std::map<std::pair<uint32_t, uint64_t>, Seen> attrs_;                           // keyed by geometry kind
 };
