@@ -100,6 +100,34 @@ TEST_F(HostileTables, MeshSegmentEntryTrianglesNotTheMeshTables) {
   expect_everywhere(p, {label, std::to_string(tris + 5) + " triangles, the mesh table says " + std::to_string(tris)});
 }
 
+// A mesh table naming a segment the package does not hold (SPEC §4.6, mesh table).
+TEST_F(HostileTables, MeshTableSegmentOutOfRange) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kMeshes, 0);
+  std::string field;
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    uint64_t n = 0;
+    fmt::MeshInfo* m = section<fmt::MeshInfo>(chunk, SectionType::kMeshTable, &n);
+    for (uint64_t k = 0; k < n; ++k)
+      if (m[k].segment != 0xFFFFFFFFu) {
+        m[k].segment = 1000;
+        field = "mesh " + std::to_string(k) + ": segment 1000 out of range";
+        return;
+      }
+    FAIL() << "no mesh in a segment";
+  });
+  expect_everywhere(p, {label, field});
+}
+
+// A batching-point descriptor whose chunk id is not its index (SPEC §4.6, descriptors).
+TEST_F(HostileTables, DescriptorChunkIdNotItsIndex) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0);
+  patch_chunk(p, index,
+              [](uint8_t* chunk, size_t) { section<fmt::BatchingPointDesc>(chunk, SectionType::kPointDescs)[1].chunk_id = 0; });
+  expect_everywhere(p, {label, "batching point 1: chunk_id 0 is not its index"});
+}
+
 // The first batching point with pieces, and its chunk index.
 size_t point_with_pieces(const std::string& path, uint64_t& id) {
   PackageReader r(path);
