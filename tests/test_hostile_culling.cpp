@@ -6,6 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstring>
+#include <functional>
+#include <limits>
 
 #include "formats/bvh_layout.h"
 #include "formats/chunk.h"
@@ -118,6 +122,151 @@ TEST_F(HostileCulling, InstanceBoxLaneEmptiedUnderAFilledBvhLane) {
     return "instance boxes: node 0 lane " + std::to_string(l) + ": child 4294967295, the instance BVH's is " +
            std::to_string(bvh.child[l]);
   });
+}
+
+// A voxel grid whose cells no longer cover its triangles (every pooled leaf cut to its lowest cell: each
+// stays a well-formed leaf, so every structural and cheap check passes) would cull rays that hit. The
+// tracers check the cheap invariants only (the grid's box, its structure); --verify re-voxelizes.
+TEST_F(HostileCulling, VoxelGridThatNoLongerCoversItsTriangles) {
+  const std::string p = copy(bases().forest);
+  {
+    const PackageReader r(p);
+    EXPECT_EQ(inspect_package(r, {.verify = true}).listed, std::vector<std::string>{}) << "the intact package is sound";
+  }
+  uint64_t leaves = 0;
+  patch_chunk(p, chunk_of(p, fmt::ChunkKind::kDagPool, 0).first, [&](uint8_t* chunk, size_t) {
+    uint64_t* mask = section<uint64_t>(chunk, SectionType::kDagLeaves, &leaves);
+    for (uint64_t k = 0; k < leaves; ++k) mask[k] &= ~mask[k] + 1;
+  });
+  ASSERT_GT(leaves, 0u) << "the forest package has no pooled leaves";
+  const std::vector<std::string> needles = {"batching point", "meets cells its voxel grid does not set"};
+  expect_inspect_problem(p, needles, true);
+  const ToolResult v = run_tool("rtpack-inspect", {"--verify", p}, dir, {}, 20);
+  EXPECT_EQ(v.code, 3) << v.err;
+  EXPECT_TRUE(contains_all(v.out, needles)) << v.out;
+}
+
+// One case per invariant voxel::check_dags enforces (SPEC §4.5), each in a valid-CRC package: every reader
+// refuses it at decode (the tracers name the DAG pool, inspect the descriptors; both name the point).
+struct DagCase {
+  const char* name;
+  bool boxes;  // forest_boxes (an instance-box grid) instead of forest (a voxel grid of R >= 16)
+  bool pool;   // edits the pool (nodes may be shared), not the grid
+  // Edits the chosen grid `g` (its index `p`), the pool's words, leaves and cull nodes; returns the message.
+  std::function<std::string(fmt::DagGrid* grids, uint64_t p, uint32_t* words, uint64_t* leaves, uint8_t* cull)> edit;
+};
+
+TEST_F(HostileCulling, EveryDagPoolInvariantIsCheckedAtDecode) {
+  const uint32_t nb = uint32_t(fmt::cull_node_bytes(kW));
+  const std::vector<DagCase> cases = {
+      {"cell", false, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].cell = -1;
+         return std::string("cell size is not a positive finite number");
+       }},
+      {"origin", false, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].origin[2] = std::numeric_limits<float>::quiet_NaN();
+         return std::string("origin is not finite");
+       }},
+      {"extent", false, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].cell = 3e38f;
+         return std::string("grid extent is not finite (in float)");
+       }},
+      {"margin", false, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].margin = -1;
+         return std::string("margin or ray_rel is negative or not finite");
+       }},
+      {"root", false, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].root = 0x7FFFFFF0u;
+         return std::string("node at word 2147483632");
+       }},
+      {"masks", false, true,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t* w, uint64_t*, uint8_t*) {
+         w[g[p].root] |= 1u << 24;
+         return std::string(": malformed masks");
+       }},
+      {"inline above level 1", false, true,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t* w, uint64_t*, uint8_t*) {
+         const uint32_t word = w[g[p].root],
+                        c = uint32_t(std::countr_zero(fmt::dag_child_mask(word) & ~fmt::dag_full_mask(word)));
+         w[g[p].root] |= 1u << (16 + c);
+         return std::string(": inline leaves above level 1");
+       }},
+      {"leaf", false, true,
+       [](fmt::DagGrid*, uint64_t, uint32_t*, uint64_t* leaves, uint8_t*) {
+         leaves[0] = 0;
+         return std::string("leaf 0 is empty or full");
+       }},
+      {"box grid fields", true, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].cell = 1;
+         return std::string("instance boxes: origin, cell, margin and ray_rel must be 0");
+       }},
+      {"box root", true, false,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         g[p].root = 0xFFFFFFu;
+         return std::string("instance boxes: first node 16777215 out of range");
+       }},
+      {"box node reached twice", true, true,
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
+         for (uint64_t q = p + 1;; ++q)
+           if (g[q].resolution == fmt::kDagBoxes) {
+             g[q].root = g[p].root;
+             return "instance boxes: node " + std::to_string(g[p].root) + " reached twice";
+           }
+       }},
+      {"box scale", true, true,
+       [nb](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
+         reinterpret_cast<fmt::CullNode<kW>*>(cull + uint64_t(g[p].root) * nb)->scale[0] = -1;
+         return "instance boxes: node " + std::to_string(g[p].root) +
+                " has a non-finite origin or a negative or non-finite scale";
+       }},
+      {"box child before its parent", true, true,
+       [nb](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
+         auto* n = reinterpret_cast<fmt::CullNode<kW>*>(cull + uint64_t(g[p].root) * nb);
+         for (int l = 0; l < kW; ++l)
+           if (!fmt::ChildRef::is_empty(n->child[l]) && !fmt::ChildRef::is_leaf(n->child[l])) {
+             n->child[l] = 0;
+             return "instance boxes: node " + std::to_string(g[p].root) + " lane " + std::to_string(l) + " references node " +
+                    std::to_string(g[p].root);
+           }
+         return std::string("no inner lane");
+       }},
+  };
+  for (const DagCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string p = copy(c.boxes ? bases().forest_boxes : bases().forest);
+    const size_t descs = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0).first,
+                 pool = chunk_of(p, fmt::ChunkKind::kDagPool, 0).first;
+    std::vector<uint8_t> grid_bytes;  // the descriptors chunk is patched after the pool, from a copy
+    uint64_t point = 0, n = 0;
+    {
+      PackageReader r(p);
+      AlignedBytes b = r.read(descs);
+      const fmt::DagGrid* g = section<fmt::DagGrid>(b.data(), SectionType::kPointGrids, &n);
+      while (point < n &&
+             !(c.boxes ? g[point].resolution == fmt::kDagBoxes : g[point].resolution >= 16 && g[point].root < fmt::kDagEmpty))
+        ++point;
+      ASSERT_LT(point, n) << "no grid for this case";
+      grid_bytes.assign(reinterpret_cast<const uint8_t*>(g), reinterpret_cast<const uint8_t*>(g + n));
+    }
+    auto* grids = reinterpret_cast<fmt::DagGrid*>(grid_bytes.data());
+    std::string message;
+    patch_chunk(p, pool, [&](uint8_t* chunk, size_t) {
+      message = c.edit(grids, point, section<uint32_t>(chunk, SectionType::kDagNodes),
+                       section<uint64_t>(chunk, SectionType::kDagLeaves), section<uint8_t>(chunk, SectionType::kCullNodes));
+    });
+    patch_chunk(p, descs, [&](uint8_t* chunk, size_t) {
+      std::memcpy(section<fmt::DagGrid>(chunk, SectionType::kPointGrids), grid_bytes.data(), grid_bytes.size());
+    });
+    // A grid field names its point; a pool edit names the first point that reaches the edited node or leaf.
+    const std::string which = "batching point " + (c.pool ? std::string() : std::to_string(point));
+    expect_everywhere(p, {which, message});
+  }
 }
 
 }  // namespace RTP_UNITY_ID

@@ -128,6 +128,31 @@ TEST_F(HostileTables, DescriptorChunkIdNotItsIndex) {
   expect_everywhere(p, {label, "batching point 1: chunk_id 0 is not its index"});
 }
 
+// A descriptor's segment list reaching past the segment references (SPEC §4.6, descriptors): the
+// out-of-core loader would read past the list to find the segments a point needs.
+TEST_F(HostileTables, DescriptorSegmentRangePastTheReferences) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0);
+  uint64_t refs = 0;
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    section<uint32_t>(chunk, SectionType::kSegmentRefs, &refs);
+    section<fmt::BatchingPointDesc>(chunk, SectionType::kPointDescs)[1].segment_count = uint32_t(refs) + 1;
+  });
+  ASSERT_GT(refs, 0u);
+  expect_everywhere(p, {label, "batching point 1: segment_first", "outside the " + std::to_string(refs) + " segment references"});
+}
+
+// A descriptor whose bounds are inverted (SPEC §4.6): the top level and culling would trust them.
+TEST_F(HostileTables, DescriptorBoundsInverted) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kBatchingPoints, 0);
+  patch_chunk(p, index, [](uint8_t* chunk, size_t) {
+    fmt::BatchingPointDesc& d = section<fmt::BatchingPointDesc>(chunk, SectionType::kPointDescs)[2];
+    std::swap(d.lo[1], d.hi[1]);
+  });
+  expect_everywhere(p, {label, "batching point 2: bounds not finite or inverted on axis 1"});
+}
+
 // The first batching point with pieces, and its chunk index.
 size_t point_with_pieces(const std::string& path, uint64_t& id) {
   PackageReader r(path);

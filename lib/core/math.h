@@ -109,6 +109,19 @@ inline double det3_of(const float m[9]) {
   return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
 }
 
+// The inverse of a row-major float 3x3 (an instance record's L^-1: L, the local->world linear part) as
+// adj / det in double; false when the matrix is singular or not finite.
+inline bool inverse3_of(const float li[9], double out[9]) {
+  const double det = det3_of(li);
+  if (!(det != 0) || !std::isfinite(det)) return false;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const int r1 = (c + 1) % 3, r2 = (c + 2) % 3, c1 = (r + 1) % 3, c2 = (r + 2) % 3;
+      out[3 * r + c] = (double(li[3 * r1 + c1]) * li[3 * r2 + c2] - double(li[3 * r1 + c2]) * li[3 * r2 + c1]) / det;
+    }
+  return true;
+}
+
 // Affine 3x4 (row-major, last column = translation), double storage: the instance transform as the
 // glTF node hierarchy composes it (a translation of 3000000.3 stays 3000000.3; SPEC §2.4 keeps it so).
 struct Affine3x4 {

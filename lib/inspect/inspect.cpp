@@ -2,6 +2,7 @@
 // batching points), each chunk read once (CRC-checked, decompressed) and dropped after use; sizes,
 // batching-point and segment statistics, per-chunk BVH statistics, and (verify) every invariant.
 #include "inspect/inspect.h"
+#include "inspect/dag_coverage.h"
 
 #include <cfloat>
 #include <cmath>
@@ -36,7 +37,8 @@ struct Ctx {
   std::unique_ptr<Verifier> ver;
   std::vector<nlohmann::json> rows;  // per TOC entry
   BvhGroup seg_meshes, pieces, inst_bvhs;
-  std::map<uint32_t, Box3d> mesh_root;  // instanced mesh -> its BVH's root bounds (local space)
+  std::map<uint32_t, Box3d> mesh_root;          // instanced mesh -> its BVH's root bounds (local space)
+  std::map<uint32_t, MeshTriangles> mesh_tris;  // --verify: instanced mesh -> its leaf triangles
   Spread seg_meshes_n, seg_tris, seg_stored, seg_raw;
   uint64_t segments_read = 0, points_read = 0;
   std::string label(size_t i) const { return chunk_label(r.toc()[i], i); }
@@ -183,15 +185,9 @@ ItemBound transformed(const fmt::InstanceRecord& rec, const Box3d& b) {
   ItemBound out;
   if (b.empty()) return out;
   const float* li = rec.inverse_linear;
-  const double det = det3_of(li);
-  if (!(det != 0) || !std::isfinite(det)) return out;  // singular: never hit, nothing to contain
-  double m[9];                                         // L = adj(L^-1) / det, row-major
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) {
-      const int r1 = (c + 1) % 3, r2 = (c + 2) % 3, c1 = (r + 1) % 3, c2 = (r + 2) % 3;
-      m[3 * r + c] = (double(li[3 * r1 + c1]) * li[3 * r2 + c2] - double(li[3 * r1 + c2]) * li[3 * r2 + c1]) / det;
-    }
-  double norm_l = 0, norm_li = 0;  // infinity norms
+  double m[9];                          // L = adj(L^-1) / det, row-major
+  if (!inverse3_of(li, m)) return out;  // singular: never hit, nothing to contain
+  double norm_l = 0, norm_li = 0;       // infinity norms
   for (int r = 0; r < 3; ++r) {
     norm_l = std::max(norm_l, std::fabs(m[3 * r]) + std::fabs(m[3 * r + 1]) + std::fabs(m[3 * r + 2]));
     norm_li =
@@ -250,6 +246,7 @@ void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
     g.add(s);
     c.seg_meshes.add(s);
     c.mesh_root[e[k].id] = ck.root_box;
+    if (c.ver) append_triangles<B>(blocks + e[k].block_first, e[k].block_count, c.mesh_tris[e[k].id]);
   }
   ++c.segments_read;
   c.seg_meshes_n.add(double(ne));
@@ -258,6 +255,22 @@ void segment_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   c.rows[i]["triangles"] = tris;
   c.rows[i]["bvh"] = g.json();
   if (c.ver) c.ver->segment(sd);
+}
+
+// --verify: the point's voxel grid covers every triangle it traces (SPEC §4.5; instance-box grids are
+// checked against the instance BVH at decode). Segments are read before points, so mesh_tris is complete.
+template <int W, int B>
+void voxel_coverage(Ctx& c, uint64_t point, const PointSections<W, B>& sec, const std::string& label) {
+  if (!c.res.grids_ok || !c.res.dag_ok || point >= c.res.grids.size()) return;
+  const fmt::DagGrid& grid = c.res.grids[point];
+  const voxel::DagView view = dag_view(c.r, c.res);
+  if (grid.resolution == fmt::kDagBoxes || !voxel::check_dag(grid, view).empty()) return;  // dag_report names it
+  std::vector<MeshTriangles> pieces(sec.n_entries);
+  for (uint64_t k = 0; k < sec.n_entries; ++k)
+    append_triangles<B>(sec.blocks + sec.entries[k].block_first, sec.entries[k].block_count, pieces[k]);
+  const std::string bad =
+      point_coverage_problem(grid, view, sec.records, sec.n_records, sec.slots, sec.n_slots, pieces, c.mesh_tris);
+  if (!bad.empty()) c.problems.add(label + ": " + bad);
 }
 
 template <int W, int B>
@@ -330,6 +343,7 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
     top = instance_bvh_shape<W>(inodes, n_in, ids, n_ids, te[0].root, &ck);
     c.inst_bvhs.add(top);
   }
+  if (c.ver) voxel_coverage<W, B>(c, point, sec, label);
   ++c.points_read;
   nlohmann::json& row = c.rows[i];
   row["pieces"] = ne;
@@ -352,13 +366,16 @@ void on_demand(Ctx& c) {
     for (size_t i = 0; i < toc.size(); ++i) {
       if (toc[i].kind != kind) continue;
       const std::optional<AlignedBytes> b = load(c, i);
-      if (!b) continue;
-      guarded(c, [&] {
-        if (kind == uint32_t(ChunkKind::kMeshSegment))
-          segment_chunk<W, B>(c, i, *b);
-        else
-          point_chunk<W, B>(c, i, *b);
-      });
+      bool decoded = false;
+      if (b)
+        guarded(c, [&] {
+          if (kind == uint32_t(ChunkKind::kMeshSegment))
+            segment_chunk<W, B>(c, i, *b);
+          else
+            point_chunk<W, B>(c, i, *b);
+          decoded = true;
+        });
+      if (!decoded && c.ver) c.ver->unreadable(kind, toc[i].id);
     }
 }
 

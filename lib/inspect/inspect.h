@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -200,6 +201,11 @@ class Verifier {
   void segment(const SegmentData& s);
   void point(const PointData& p);
   void attributes(size_t toc_index, const AlignedBytes& bytes);  // kinds 18, 19
+  // A geometry chunk that failed to read or decode (already a problem): finish() does not report what it
+  // would have held as missing, so the cause is not buried under its consequences.
+  void unreadable(uint32_t kind, uint64_t id) {
+    (kind == uint32_t(fmt::ChunkKind::kBatchingPoint) ? bad_points_ : bad_segments_).insert(id);
+  }
   void finish();
 
  private:
@@ -219,6 +225,7 @@ class Verifier {
   std::map<uint32_t, PieceHome> piece_home_;
   std::vector<uint8_t> mesh_in_segment_;     // per mesh: entries in segments
   std::map<uint32_t, uint32_t> piece_seen_;  // piece id -> times stored
+  std::set<uint64_t> bad_points_, bad_segments_;
   AttributeChecker attrs_;
   uint64_t pieces_ = 0, segments_ = 0, points_ = 0;
 };

@@ -444,6 +444,7 @@ void Verifier::finish() {
     const uint32_t m = res_.instances[g].mesh;
     if (m >= res_.meshes.size()) continue;
     const std::string what = res_.instances_label + ": instance " + str(g) + " (mesh " + str(m) + ")";
+    if (bad_points_.count(res_.instances[g].point)) continue;  // its point is already a problem
     if (res_.meshes[m].flags & 1u) {
       if (instance_seen_[g] != 1) out_.add(what + ": in " + str(instance_seen_[g]) + " batching points, expected 1");
       continue;
@@ -466,7 +467,7 @@ void Verifier::finish() {
     if (!t.empty()) out_.add(what + ": its pieces: " + t);
   }
   for (size_t m = 0; m < res_.meshes.size(); ++m)
-    if ((res_.meshes[m].flags & 1u) && mesh_in_segment_[m] != 1)
+    if ((res_.meshes[m].flags & 1u) && mesh_in_segment_[m] != 1 && !bad_segments_.count(res_.meshes[m].segment))
       out_.add(res_.meshes_label + ": mesh " + str(m) + " is stored " + str(mesh_in_segment_[m]) + " times in mesh segments");
   // Piece ids are 0..pieces-1: the ids seen are a map (a hostile id costs one entry, not 4 GB), and the
   // missing ones are one message (count and first), not one per id.

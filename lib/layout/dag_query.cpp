@@ -83,7 +83,9 @@ std::string check_one(const fmt::DagGrid& g, const DagView& v, std::vector<uint8
   if (!(std::isfinite(g.cell) && g.cell > 0)) return "cell size is not a positive finite number";
   for (int k = 0; k < 3; ++k)
     if (!std::isfinite(g.origin[k])) return "origin is not finite";
-  if (!(std::isfinite(double(g.origin[0]) + double(g.cell) * g.resolution))) return "grid extent is not finite";
+  // The far corner in float, as the writer stores grid boxes (in double it could never overflow).
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(g.origin[k] + g.cell * float(g.resolution))) return "grid extent is not finite (in float)";
   if (!(g.margin >= 0 && std::isfinite(g.margin)) || !(g.ray_rel >= 0 && std::isfinite(g.ray_rel)))
     return "margin or ray_rel is negative or not finite";
   if (g.root == fmt::kDagEmpty || g.root == fmt::kDagFull) return "";
