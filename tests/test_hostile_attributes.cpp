@@ -132,6 +132,14 @@ class HostileAttributes : public Hostile {
     EXPECT_EQ(v.code, 3) << v.out << v.err;
     EXPECT_TRUE(contains_all(v.out, needles)) << "rtpack-inspect --verify: " << v.out << v.err;  // listed on stdout
   }
+  // A fault in the chunk on its own (decode_attributes): plain rtpack-inspect, which decodes every chunk it
+  // reads, refuses it too (SPEC §4.7 readers A I V). Faults against the geometry need --verify.
+  void expect_refused_alone(const std::string& path, const std::vector<std::string>& needles) {
+    expect_refused(path, needles);
+    const ToolResult i = run_tool("rtpack-inspect", {path}, dir, {}, 20);
+    EXPECT_EQ(i.code, 3) << i.out << i.err;
+    EXPECT_TRUE(contains_all(i.out + i.err, needles)) << "rtpack-inspect: " << i.out << i.err;
+  }
 };
 
 TEST_F(HostileAttributes, IntactPackagesShadeWithExitZero) {
@@ -185,7 +193,7 @@ TEST_F(HostileAttributes, TriangleIdsNotAscending) {
     uint32_t* ids = section<uint32_t>(ch, SectionType::kAttrTriIds) + c.entries[k].tri_id_first;
     std::swap(ids[0], ids[1]);
   });
-  expect_refused(p, {c.label, entry_name(c, k), "triangle ids not strictly ascending at 1"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "triangle ids not strictly ascending at 1"});
 }
 
 TEST_F(HostileAttributes, TriangleIdPastTheMesh) {
@@ -262,8 +270,9 @@ TEST_F(HostileAttributes, VertexIndexPastVertexCount) {
   patch(p, c, [&](uint8_t* ch) {
     section<std::array<uint32_t, 3>>(ch, SectionType::kAttrTriangles)[e.triangle_first][1] = e.vertex_count;
   });
-  expect_refused(p, {c.label, entry_name(c, k), "vertex indices out of range: triangle 0",
-                     "has vertex index " + std::to_string(e.vertex_count) + ", vertex_count " + std::to_string(e.vertex_count)});
+  expect_refused_alone(
+      p, {c.label, entry_name(c, k), "vertex indices out of range: triangle 0",
+          "has vertex index " + std::to_string(e.vertex_count) + ", vertex_count " + std::to_string(e.vertex_count)});
 }
 
 TEST_F(HostileAttributes, NanNormal) {
@@ -272,7 +281,7 @@ TEST_F(HostileAttributes, NanNormal) {
   const size_t k = stored_entry(c, [](const fmt::AttributeEntry& e) { return e.normal_first != fmt::kNoAttribute; });
   const uint32_t at = c.entries[k].normal_first + 1;
   patch(p, c, [&](uint8_t* ch) { section<std::array<float, 3>>(ch, SectionType::kAttrNormals)[at][1] = std::nanf(""); });
-  expect_refused(p, {c.label, "normals neither unit length nor (0,0,0): normal " + std::to_string(at) + " = ("});
+  expect_refused_alone(p, {c.label, "normals neither unit length nor (0,0,0): normal " + std::to_string(at) + " = ("});
 }
 
 TEST_F(HostileAttributes, NanUv) {
@@ -281,7 +290,7 @@ TEST_F(HostileAttributes, NanUv) {
   const size_t k = stored_entry(c, [](const fmt::AttributeEntry& e) { return e.uv_first != fmt::kNoAttribute; });
   const uint32_t at = c.entries[k].uv_first + 2;
   patch(p, c, [&](uint8_t* ch) { section<std::array<float, 2>>(ch, SectionType::kAttrUvs)[at][0] = std::nanf(""); });
-  expect_refused(p, {c.label, "non-finite texture coordinates: uv " + std::to_string(at) + " = (nan"});
+  expect_refused_alone(p, {c.label, "non-finite texture coordinates: uv " + std::to_string(at) + " = (nan"});
 }
 
 TEST_F(HostileAttributes, ReservedNotZero) {
@@ -289,7 +298,7 @@ TEST_F(HostileAttributes, ReservedNotZero) {
   const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kPointAttributes, 0);
   const size_t k = stored_entry(c);
   patch(p, c, [&](uint8_t* ch) { entry_at(ch, k).reserved = 7; });
-  expect_refused(p, {c.label, entry_name(c, k), "reserved 7, not 0"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "reserved 7, not 0"});
 }
 
 TEST_F(HostileAttributes, SegmentEntryWithTriangleIds) {
@@ -297,7 +306,7 @@ TEST_F(HostileAttributes, SegmentEntryWithTriangleIds) {
   const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kSegmentAttributes, 0);
   const size_t k = stored_entry(c);
   patch(p, c, [&](uint8_t* ch) { entry_at(ch, k).tri_id_first = 0; });
-  expect_refused(p, {c.label, entry_name(c, k), "tri_id_first 0 in a mesh segment's chunk"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "tri_id_first 0 in a mesh segment's chunk"});
 }
 
 TEST_F(HostileAttributes, PieceEntryWithoutTriangleIds) {
@@ -305,7 +314,7 @@ TEST_F(HostileAttributes, PieceEntryWithoutTriangleIds) {
   const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kPointAttributes, 0);
   const size_t k = stored_entry(c);
   patch(p, c, [&](uint8_t* ch) { entry_at(ch, k).tri_id_first = fmt::kNoAttribute; });
-  expect_refused(p, {c.label, entry_name(c, k), "tri_id_first 0xFFFFFFFF: a piece's entry needs triangle ids"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "tri_id_first 0xFFFFFFFF: a piece's entry needs triangle ids"});
 }
 
 TEST_F(HostileAttributes, EmptyEntryThatPointsAtData) {
@@ -314,7 +323,7 @@ TEST_F(HostileAttributes, EmptyEntryThatPointsAtData) {
   const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kPointAttributes, 0);
   const size_t k = stored_entry(c);
   patch(p, c, [&](uint8_t* ch) { entry_at(ch, k).triangle_count = 0; });
-  expect_refused(
+  expect_refused_alone(
       p, {c.label, entry_name(c, k),
           "triangle_count 0 (an entry that stores nothing) with vertex_count " + std::to_string(c.entries[k].vertex_count)});
 }
@@ -345,7 +354,7 @@ TEST_F(HostileAttributes, EntriesSharingTriangles) {
     e.tri_id_first = 0;
     e.triangle_count = uint32_t(n_tris);
   });
-  expect_refused(p, {c.label, entry_name(c, k), "triangle ranges of the entries overlap"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "triangle ranges of the entries overlap"});
 }
 
 }  // namespace RTP_UNITY_ID

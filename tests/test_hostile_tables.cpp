@@ -78,6 +78,45 @@ TEST_F(HostileTables, InstanceTableNamingAPointOutOfRange) {
   expect_everywhere(p, {label, "instance 0: batching point 2147483632 out of range"});
 }
 
+// An instance table naming a mesh the mesh table does not hold (SPEC §4.6, instance table).
+TEST_F(HostileTables, InstanceTableNamingAMeshOutOfRange) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kInstances, 0);
+  patch_chunk(p, index,
+              [](uint8_t* chunk, size_t) { section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[3].mesh = 77; });
+  expect_everywhere(p, {label, "instance 3: mesh 77 out of range (5 meshes)"});
+}
+
+// An instance in no batching point (its mesh has no triangles) must say local 0 (SPEC §2.5).
+TEST_F(HostileTables, InstanceTableLocalWithoutAPoint) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kInstances, 0);
+  patch_chunk(p, index, [](uint8_t* chunk, size_t) {
+    fmt::InstanceRef& r = section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[5];
+    r.point = fmt::InstanceRef::kNoPoint;
+    r.local = 9;
+  });
+  expect_everywhere(p, {label, "instance 5: in no batching point but local 9"});
+}
+
+// One mesh with two entries in its segment (the second relabelled, with the first's triangle count so
+// every other check passes).
+TEST_F(HostileTables, MeshSegmentHoldingAMeshTwice) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kMeshSegment, 0);
+  uint32_t id = 0;
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    uint64_t n = 0;
+    auto* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries, &n);
+    ASSERT_GE(n, 2u);
+    const uint64_t big = e[0].triangles >= e[1].triangles ? 0 : 1, small = 1 - big;
+    id = e[big].id;
+    e[small].id = e[big].id;
+    e[small].triangles = e[big].triangles;  // its prims stay below the count
+  });
+  expect_everywhere(p, {label, "mesh " + std::to_string(id) + " has two entries"});
+}
+
 // Mesh segment 0's chunk relabelled as segment 1: it then holds meshes the mesh table places in another
 // segment. The tracer used them anyway (the hits as if intact, exit 0).
 TEST_F(HostileTables, MeshSegmentChunkIdNotTheMeshTables) {

@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/json_checked.h"
 #include "core/math.h"
+#include "reader/attribute_lookup.h"
 #include "reader/camera.h"
 #include "reader/check_chunks.h"
 #include "reader/check_culling.h"
@@ -523,6 +524,11 @@ InspectResult inspect_package(const PackageReader& reader, const InspectOptions&
       const bool attr =
           toc[i].kind == uint32_t(ChunkKind::kSegmentAttributes) || toc[i].kind == uint32_t(ChunkKind::kPointAttributes);
       if (b && attr && c.ver) c.ver->attributes(i, *b);
+      if (b && attr && !c.ver)  // the chunk on its own, as the attribute lookup decodes it (--verify: and against its geometry)
+        guarded(c, [&] {
+          const ChunkView v(b->data(), b->size(), toc[i].kind, c.label(i));
+          (void)decode_attributes(v, toc[i].kind);
+        });
     }
   if (c.ver) c.ver->finish();
 
