@@ -333,7 +333,16 @@ TEST_F(HostileAttributes, TriangleCountNotTheMeshEntrys) {
   const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kSegmentAttributes, 0);
   const size_t k = stored_entry(c);
   const uint32_t n = c.entries[k].triangle_count;
-  patch(p, c, [&](uint8_t* ch) { entry_at(ch, k).triangle_count = n - 1; });
+  patch(p, c, [&](uint8_t* ch) {  // and the layout kept canonical (SPEC §4.4): later entries and the section move up one
+    entry_at(ch, k).triangle_count = n - 1;
+    for (size_t j = k + 1; j < c.entries.size(); ++j)
+      if (entry_at(ch, j).triangle_count) entry_at(ch, j).triangle_first -= 1;
+    auto* tris = section<std::array<uint32_t, 3>>(ch, SectionType::kAttrTriangles);
+    const uint64_t last = c.entries[k].triangle_first + n - 1;  // the triangle dropped
+    fmt::SectionEntry* se = section_entry(ch, SectionType::kAttrTriangles);
+    std::memmove(&tris[last], &tris[last + 1], (se->count - last - 1) * sizeof tris[0]);
+    se->count -= 1;
+  });
   expect_refused(p, {c.label, entry_name(c, k),
                      "triangle_count " + std::to_string(n - 1) + ", the geometry entry has " + std::to_string(n) + " triangles"});
 }
@@ -354,7 +363,19 @@ TEST_F(HostileAttributes, EntriesSharingTriangles) {
     e.tri_id_first = 0;
     e.triangle_count = uint32_t(n_tris);
   });
-  expect_refused_alone(p, {c.label, entry_name(c, k), "triangle ranges of the entries overlap"});
+  expect_refused_alone(p, {c.label, entry_name(c, k), "triangle_first 0, expected "});
+}
+
+// Found by fuzz_structures: an entry's normals moved by one vertex, still inside the section, shaded every
+// hit of it with its neighbour's normals (exit 0, and --verify said OK). Sections hold the entries'
+// elements in entry order (SPEC §4.4), so any moved range is refused.
+TEST_F(HostileAttributes, NormalRangeMovedInsideItsSection) {
+  const std::string p = copy(bases().lantern);
+  const AttrChunk c = attr_chunk(p, fmt::ChunkKind::kPointAttributes, 0);
+  ASSERT_GE(c.entries.size(), 2u);
+  ASSERT_EQ(c.entries[0].normal_first, 0u);
+  patch(p, c, [&](uint8_t* ch) { entry_at(ch, 0).normal_first = 1; });
+  expect_refused_alone(p, {c.label, entry_name(c, 0), "normal_first 1, expected 0"});
 }
 
 }  // namespace RTP_UNITY_ID

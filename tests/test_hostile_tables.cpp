@@ -117,6 +117,42 @@ TEST_F(HostileTables, MeshSegmentHoldingAMeshTwice) {
   expect_everywhere(p, {label, "mesh " + std::to_string(id) + " has two entries"});
 }
 
+// Two records' global ids swapped (found by fuzz_structures): every range holds, but each hit reported
+// the other instance's id (exit 0); only --verify compared them with the instance table.
+TEST_F(HostileTables, GlobalIdsNotWhereTheInstanceTableSays) {
+  const std::string p = copy(bases().forest);
+  uint64_t point = 0;
+  const size_t index = point_with_instances(p, point);
+  const std::string label = chunk_of(p, fmt::ChunkKind::kBatchingPoint, point).second;
+  uint32_t second = 0;
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    uint64_t n = 0;
+    uint32_t* g = section<uint32_t>(chunk, SectionType::kGlobalIds, &n);
+    ASSERT_GE(n, 2u);
+    second = g[1];
+    std::swap(g[0], g[1]);
+  });
+  expect_everywhere(p,
+                    {label, "instance 0: global instance " + std::to_string(second) +
+                                ", which the instance table places in batching point " + std::to_string(point) + " (local 1)"});
+}
+
+// The instance table's local index of an instance flipped: the point chunk holding it is refused when it
+// is decoded (it no longer agrees with the table), by every reader.
+TEST_F(HostileTables, InstanceTableLocalIndexFlipped) {
+  const std::string p = copy(bases().forest);
+  const auto [index, label] = chunk_of(p, fmt::ChunkKind::kInstances, 0);
+  fmt::InstanceRef ref{};
+  patch_chunk(p, index, [&](uint8_t* chunk, size_t) {
+    fmt::InstanceRef& r = section<fmt::InstanceRef>(chunk, SectionType::kInstanceRefs)[3];
+    r.local ^= 1;
+    ref = r;
+  });
+  expect_everywhere(p, {chunk_of(p, fmt::ChunkKind::kBatchingPoint, ref.point).second,
+                        "which the instance table places in batching point " + std::to_string(ref.point) + " (local " +
+                            std::to_string(ref.local) + ")"});
+}
+
 // Mesh segment 0's chunk relabelled as segment 1: it then holds meshes the mesh table places in another
 // segment. The tracer used them anyway (the hits as if intact, exit 0).
 TEST_F(HostileTables, MeshSegmentChunkIdNotTheMeshTables) {
@@ -192,21 +228,23 @@ TEST_F(HostileTables, DescriptorBoundsInverted) {
   expect_everywhere(p, {label, "batching point 2: bounds not finite or inverted on axis 1"});
 }
 
-// The first batching point with pieces, and its chunk index.
-size_t point_with_pieces(const std::string& path, uint64_t& id) {
+// The first batching point with at least `pieces` pieces, and its chunk index.
+size_t point_with_n_pieces(const std::string& path, uint64_t& id, uint64_t pieces) {
   PackageReader r(path);
   for (size_t i = 0; i < r.toc().size(); ++i) {
     if (r.toc()[i].kind != uint32_t(fmt::ChunkKind::kBatchingPoint)) continue;
     AlignedBytes b = r.read(i);
     uint64_t n = 0;
     section<fmt::MeshEntry>(b.data(), SectionType::kMeshEntries, &n);
-    if (n >= 1) {
+    if (n >= pieces) {
       id = r.toc()[i].id;
       return i;
     }
   }
-  throw std::runtime_error("no batching point with pieces");
+  throw std::runtime_error("no batching point with " + std::to_string(pieces) + " pieces");
 }
+size_t point_with_pieces(const std::string& path, uint64_t& id) { return point_with_n_pieces(path, id, 1); }
+size_t point_with_two_pieces(const std::string& path, uint64_t& id) { return point_with_n_pieces(path, id, 2); }
 
 // A piece's leaf prim past its scene mesh's triangles: rtpack-trace wrote it into the hit file.
 TEST_F(HostileTables, PieceLeafPrimPastItsMesh) {
@@ -214,6 +252,29 @@ TEST_F(HostileTables, PieceLeafPrimPastItsMesh) {
     const auto* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
     section<fmt::LeafBlock<kB>>(chunk, SectionType::kBlocks)[e[0].block_first].prim[0] = 0x7FFFFFFFu;
     return "piece " + std::to_string(e[0].id) + " (entry 0): block 0 lane 0: prim 2147483647 out of range";
+  });
+}
+
+// Found by fuzz_structures: a mesh slot naming another piece of the point: that piece traced twice, the
+// other never (hits lost, exit 0; only --verify's coverage noticed). Each piece entry has one slot.
+TEST_F(HostileTables, PieceEntryNamedByTwoSlots) {
+  expect_point_refused(bases().lantern, point_with_two_pieces, [](uint8_t* chunk) {
+    uint64_t n = 0;
+    uint32_t* slots = section<uint32_t>(chunk, SectionType::kMeshSlots, &n);
+    for (uint64_t s = 0; s < n; ++s)
+      if ((slots[s] & fmt::kPieceBit) && (slots[s] & ~fmt::kPieceBit) == 1) slots[s] = fmt::kPieceBit | 0u;  // names entry 0
+    return std::string("piece entry 0 is named by 2 mesh slots, expected 1");
+  });
+}
+
+// Two records on one piece slot: the piece traced twice, the other record's piece never.
+TEST_F(HostileTables, PieceSlotUsedByTwoRecords) {
+  expect_point_refused(bases().lantern, point_with_two_pieces, [](uint8_t* chunk) {
+    uint64_t n = 0;
+    fmt::InstanceRecord* r = section<fmt::InstanceRecord>(chunk, SectionType::kInstances, &n);
+    const uint32_t slot = std::min(r[0].mesh, r[1].mesh);
+    r[0].mesh = r[1].mesh = slot;
+    return "mesh slot " + std::to_string(slot) + " (a piece) is used by 2 instances, expected 1";
   });
 }
 

@@ -279,7 +279,7 @@ void point_chunk(Ctx& c, size_t i, const AlignedBytes& b) {
   const std::string label = c.label(i);
   ChunkView v(b.data(), b.size(), uint32_t(ChunkKind::kBatchingPoint), label);
   // Throws (the chunk becomes a problem) unless every index and range a walk follows is sound.
-  const PointSections<W, B> sec = decode_point<W, B>(v, scene_tables(c.res));
+  const PointSections<W, B> sec = decode_point<W, B>(v, scene_tables(c.res), c.r.toc()[i].id);
   const uint64_t point = c.r.toc()[i].id;
   if (c.res.grids_ok && c.res.dag_ok && point < c.res.grids.size())
     check_instance_boxes<W>(c.res.grids[point], dag_view(c.r, c.res), sec.instance_nodes, sec.n_instance_nodes, label);

@@ -130,21 +130,34 @@ AttributeSections decode_attributes(const ChunkView& v, uint32_t kind) {
   s.uvs = v.get<std::array<float, 2>>(fmt::SectionType::kAttrUvs, s.n_uvs, false);
   s.tri_ids = v.get<uint32_t>(fmt::SectionType::kAttrTriIds, s.n_tri_ids, false);
   s.id_sets.resize(s.n_entries);
-  // Σ of the entries' counts bounded by the sections: all the per-entry loops are O(bytes of the chunk).
-  uint64_t tris_total = 0, ids_total = 0;
+  // SPEC §4.4: each section holds the entries' elements in entry order, without gaps (so no two entries share
+  // any, and Σ of the counts is the section's size: all the per-entry loops are O(bytes of the chunk)).
+  uint64_t at_tri = 0, at_normal = 0, at_uv = 0, at_id = 0;
   for (uint64_t k = 0; k < s.n_entries; ++k) {
     const fmt::AttributeEntry& a = s.entries[k];
     const std::string what = label + ": entry " + dec(k) + " (id " + dec(a.id) + ")";
     std::string bad = entry_fields(a, piece);
     if (bad.empty()) bad = attribute_entry_ranges(a, s.n_tris, s.n_normals, s.n_uvs, s.n_tri_ids);  // 64-bit safe
     if (!bad.empty()) fail_invalid(what + ": " + bad);
-    tris_total += a.triangle_count;
-    ids_total += a.tri_id_first != fmt::kNoAttribute ? a.triangle_count : 0;
-    if (tris_total > s.n_tris || ids_total > s.n_tri_ids)
-      fail_invalid(what + ": triangle ranges of the entries overlap (more triangles or triangle ids than the sections hold)");
+    if (a.triangle_count) {
+      auto in_order = [&](const char* field, uint64_t first, uint64_t& at, uint64_t count) {
+        if (first != at)
+          fail_invalid(what + ": " + field + " " + dec(first) + ", expected " + dec(at) +
+                       " (each section holds the entries' elements in entry order, without gaps)");
+        at += count;
+      };
+      in_order("triangle_first", a.triangle_first, at_tri, a.triangle_count);
+      if (a.normal_first != fmt::kNoAttribute) in_order("normal_first", a.normal_first, at_normal, a.vertex_count);
+      if (a.uv_first != fmt::kNoAttribute) in_order("uv_first", a.uv_first, at_uv, a.vertex_count);
+      if (a.tri_id_first != fmt::kNoAttribute) in_order("tri_id_first", a.tri_id_first, at_id, a.triangle_count);
+    }
     check_vertex_indices(s, k, what);
     s.id_sets[k] = tri_id_set(s, k, what);
   }
+  if (at_tri != s.n_tris || at_normal != s.n_normals || at_uv != s.n_uvs || at_id != s.n_tri_ids)
+    fail_invalid(label + ": the entries use " + dec(at_tri) + " triangles, " + dec(at_normal) + " normals, " + dec(at_uv) +
+                 " uvs, " + dec(at_id) + " triangle ids of sections holding " + dec(s.n_tris) + ", " + dec(s.n_normals) + ", " +
+                 dec(s.n_uvs) + ", " + dec(s.n_tri_ids));
   check_vertex_values(s, label);
   return s;
 }

@@ -196,7 +196,7 @@ GeometrySections<W, B> decode_segment(const ChunkView& v, const SceneTables& tab
 }
 
 template <int W, int B>
-PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables) {
+PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables, uint64_t point) {
   using fmt::SectionType;
   const std::string& L = v.label();
   PointSections<W, B> p;
@@ -239,10 +239,22 @@ PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables) 
     if ((p.slots[s] & fmt::kPieceBit) && (p.slots[s] & ~fmt::kPieceBit) >= p.n_entries)
       fail_invalid(L + ": mesh slot " + str(s) + " names piece entry " + str(p.slots[s] & ~fmt::kPieceBit) + " out of range (" +
                    str(p.n_entries) + " entries)");
+  // Each piece is traced once (SPEC §4.2): every piece entry named by exactly one mesh slot, every piece
+  // slot by exactly one record (instanced meshes' slots are shared by their instances).
+  std::vector<uint32_t> entry_slots(p.n_entries, 0), slot_records(p.n_slots, 0);
+  for (uint64_t s = 0; s < p.n_slots; ++s)
+    if (p.slots[s] & fmt::kPieceBit) ++entry_slots[p.slots[s] & ~fmt::kPieceBit];
+  for (uint64_t k = 0; k < p.n_entries; ++k)
+    if (entry_slots[k] != 1)
+      fail_invalid(L + ": piece entry " + str(k) + " is named by " + str(entry_slots[k]) + " mesh slots, expected 1");
+  for (uint64_t k = 0; k < p.n_records; ++k) ++slot_records[p.records[k].mesh];
+  for (uint64_t s = 0; s < p.n_slots; ++s)
+    if ((p.slots[s] & fmt::kPieceBit) && slot_records[s] != 1)
+      fail_invalid(L + ": mesh slot " + str(s) + " (a piece) is used by " + str(slot_records[s]) + " instances, expected 1");
   check_instance_records(p.records, p.n_records, L);
   // A piece's leaves index its scene mesh's triangles (SPEC §4.2).
   const std::vector<uint64_t> bounds =
-      piece_triangle_bounds({p.records, p.global_ids, p.slots, p.n_records, p.n_entries}, tables, L);
+      piece_triangle_bounds({p.records, p.global_ids, p.slots, p.n_records, p.n_entries, point}, tables, L);
   for (uint64_t k = 0; k < p.n_entries; ++k)
     check_leaf_prims(p.blocks + p.entries[k].block_first, p.entries[k].block_count, bounds[k],
                      [&] { return L + ": piece " + str(p.entries[k].id) + " (entry " + str(k) + ")"; });
@@ -268,7 +280,7 @@ std::string attribute_entry_ranges(const fmt::AttributeEntry& e, uint64_t tris, 
 
 #define RTP_CHECK_WB(W, B)                                                                              \
   template GeometrySections<W, B> decode_segment<W, B>(const ChunkView&, const SceneTables&, uint64_t); \
-  template PointSections<W, B> decode_point<W, B>(const ChunkView&, const SceneTables&);
+  template PointSections<W, B> decode_point<W, B>(const ChunkView&, const SceneTables&, uint64_t);
 RTP_CHECK_WB(4, 4)
 RTP_CHECK_WB(8, 8)
 RTP_CHECK_WB(16, 16)

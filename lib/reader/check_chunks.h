@@ -90,9 +90,10 @@ GeometrySections<W, B> decode_segment(const ChunkView& v, const SceneTables& tab
 // < the scene's instances, record meshes < slots, piece slots naming an entry, the records' transforms
 // (check_instance_records). With both tables, per record: a piece slot for a mesh the mesh table stores as
 // pieces, and every leaf prim of that piece < the mesh's triangles; otherwise the slot's mesh is the
-// instance's and the mesh table places it in a segment.
+// instance's and the mesh table places it in a segment; and the instance table places the record's
+// instance in this point (`point`) at its index (a piece: its first piece, at or before this one).
 template <int W, int B>
-PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables);
+PointSections<W, B> decode_point(const ChunkView& v, const SceneTables& tables, uint64_t point);
 
 // Kinds 18/19: one attribute entry's ranges inside sections of `tris` triangles, `normals` / `uvs`
 // vertices and `tri_ids` ids (64-bit safe). Returns "" or what is wrong (the field named).

@@ -74,10 +74,17 @@ std::vector<uint64_t> piece_triangle_bounds(const PointRefs& p, const SceneTable
   std::vector<uint32_t> piece_mesh(p.n_entries, kUnset);  // the scene mesh each piece entry is of
   for (uint64_t k = 0; k < p.n_records; ++k) {
     auto what = [&] { return label + ": instance " + num(k); };
-    const uint32_t mesh = t.instances[p.global_ids[k]].mesh;  // < n_meshes: check_instance_table
+    const fmt::InstanceRef& ref = t.instances[p.global_ids[k]];
+    const uint32_t mesh = ref.mesh;  // < n_meshes: check_instance_table
     const uint32_t slot = p.slots[p.records[k].mesh];
     const uint32_t segment = t.meshes[mesh].segment;
+    auto placed = [&] {
+      return what() + ": global instance " + num(p.global_ids[k]) + ", which the instance table places in " +
+             (ref.point == fmt::InstanceRef::kNoPoint ? std::string("no batching point")
+                                                      : "batching point " + num(ref.point) + " (local " + num(ref.local) + ")");
+    };
     if (!(slot & fmt::kPieceBit)) {
+      if (ref.point != p.point || ref.local != k) fail_invalid(placed());
       if (slot != mesh)
         fail_invalid(what() + ": its mesh slot names mesh " + num(slot) + ", the instance table says mesh " + num(mesh));
       if (segment == kNoSegment)
@@ -85,6 +92,8 @@ std::vector<uint64_t> piece_triangle_bounds(const PointRefs& p, const SceneTable
       continue;
     }
     const uint32_t entry = slot & ~fmt::kPieceBit;
+    if (ref.point == fmt::InstanceRef::kNoPoint || std::pair<uint64_t, uint64_t>(ref.point, ref.local) > std::pair(p.point, k))
+      fail_invalid(placed() + ", after this piece (it names the first)");
     if (segment != kNoSegment)
       fail_invalid(what() + ": a piece of mesh " + num(mesh) + ", which the mesh table places in segment " + num(segment));
     if (piece_mesh[entry] != kUnset && piece_mesh[entry] != mesh)

@@ -20,9 +20,11 @@ struct PointRefs {
   const uint32_t* global_ids;
   const uint32_t* slots;
   uint64_t n_records, n_entries;
+  uint64_t point;  // this chunk's batching point
 };
 
-// Kind 16 records against both tables (see decode_point); per piece entry, the triangle count of the scene
+// Kind 16 records against both tables (see decode_point): where the instance table places each record
+// (an instance: this point and local index; a piece: its first piece, so not after this one); per piece entry, the triangle count of the scene
 // mesh its leaves index, or kUnknownCount (no record uses it, or a table is missing).
 std::vector<uint64_t> piece_triangle_bounds(const PointRefs& p, const SceneTables& t, const std::string& label);
 

@@ -305,7 +305,7 @@ class Batched final : public OutOfCoreTracer {
     const std::string label = chunk_label(e, index);
     if (e.kind == uint32_t(fmt::ChunkKind::kBatchingPoint)) {
       ChunkView v(b.data(), b.size(), e.kind, label);
-      const PointSections<W, B>& d = points_[e.id].s = decode_point<W, B>(v, res_.tables.view);
+      const PointSections<W, B>& d = points_[e.id].s = decode_point<W, B>(v, res_.tables.view, e.id);
       if (res_.grids) check_instance_boxes<W>(res_.grids[e.id], res_.dag, d.instance_nodes, d.n_instance_nodes, label);
       return;
     }

@@ -123,7 +123,7 @@ class InCoreTracer final : public PackageTracer {
       ChunkView v(b.data(), b.size(), uint32_t(fmt::ChunkKind::kBatchingPoint), label);
       Point<W, B>& pt = points_[p];
       const PointSections<W, B> s = checked([&] {
-        const PointSections<W, B> d = decode_point<W, B>(v, tables_.view);
+        const PointSections<W, B> d = decode_point<W, B>(v, tables_.view, p);
         if (grids_) check_instance_boxes<W>(grids_[p], dag_, d.instance_nodes, d.n_instance_nodes, label);
         return d;
       });
