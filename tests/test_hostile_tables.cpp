@@ -267,6 +267,17 @@ TEST_F(HostileTables, PieceEntryNamedByTwoSlots) {
   });
 }
 
+// Found by fuzz_structures: a piece entry's block range moved by one block, still inside the section: its
+// leaves held another piece's triangles, outside their boxes (hits lost, exit 0; --verify alone saw it).
+// The entries' ranges follow each other in entry order (SPEC §4.2).
+TEST_F(HostileTables, PieceBlockRangeMovedInsideItsSection) {
+  expect_point_refused(bases().lantern, point_with_two_pieces, [](uint8_t* chunk) {
+    auto* e = section<fmt::MeshEntry>(chunk, SectionType::kMeshEntries);
+    e[0].block_first = 1;
+    return "piece " + std::to_string(e[0].id) + " (entry 0): node_first 0, block_first 1, expected 0 and 0";
+  });
+}
+
 // Two records on one piece slot: the piece traced twice, the other record's piece never.
 TEST_F(HostileTables, PieceSlotUsedByTwoRecords) {
   expect_point_refused(bases().lantern, point_with_two_pieces, [](uint8_t* chunk) {

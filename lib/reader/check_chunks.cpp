@@ -77,7 +77,7 @@ void check_leaf_prims(const fmt::LeafBlock<B>* blocks, uint64_t count, uint64_t 
 // The entries' BVHs of a geometry chunk. `prims`: also every leaf prim < the entry's triangles.
 template <int W, int B>
 void check_entries(const GeometrySections<W, B>& g, const std::string& label, const char* entry_name, bool prims) {
-  uint64_t nodes_total = 0;
+  uint64_t nodes_total = 0, blocks_total = 0;
   std::vector<uint8_t> seen;
   for (uint64_t k = 0; k < g.n_entries; ++k) {
     const fmt::MeshEntry& e = g.entries[k];
@@ -88,13 +88,20 @@ void check_entries(const GeometrySections<W, B>& g, const std::string& label, co
     if (!range_inside(e.block_first, e.block_count, g.n_blocks))
       fail_invalid(what() + ": block_first " + str(e.block_first) + " + block_count " + str(e.block_count) + " outside the " +
                    str(g.n_blocks) + " blocks");
+    // SPEC §2.2: the entries' node and block ranges follow each other in entry order, without gaps (a range
+    // moved onto another entry's blocks traced triangles outside their leaf boxes: hits lost, exit 0).
+    if (e.node_first != nodes_total || e.block_first != blocks_total)
+      fail_invalid(what() + ": node_first " + str(e.node_first) + ", block_first " + str(e.block_first) + ", expected " +
+                   str(nodes_total) + " and " + str(blocks_total) + " (the entries' ranges follow each other in entry order)");
     nodes_total += e.node_count;
-    if (nodes_total > g.n_nodes)
-      fail_invalid(what() + ": node ranges of the entries overlap (more nodes than the section holds)");
+    blocks_total += e.block_count;
     if (seen.size() < e.node_count) seen.assign(e.node_count, 0);
     check_wide_bvh<W>(g.nodes + e.node_first, e.node_count, e.root, e.block_count, seen, what, "block");
     if (prims) check_leaf_prims(g.blocks + e.block_first, e.block_count, e.triangles, what);
   }
+  if (nodes_total != g.n_nodes || blocks_total != g.n_blocks)
+    fail_invalid(label + ": the entries hold " + str(nodes_total) + " nodes and " + str(blocks_total) +
+                 " blocks of sections of " + str(g.n_nodes) + " and " + str(g.n_blocks));
 }
 
 template <int W, int B>

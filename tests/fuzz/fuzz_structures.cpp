@@ -66,6 +66,7 @@ constexpr size_t kCount = sizeof kStructures / sizeof kStructures[0];
 // The answers of every reader; `ok` false where the reader refused the package.
 struct Answers {
   bool verify_ok = false, core_ok = false, shade_ok = false, ooc_ok = false;
+  std::string verify_first;  // --verify's first problem
   std::vector<rtp::fmt::Hit> plain, culled, ooc;
   std::vector<uint8_t> any_plain, any_culled;
   std::vector<rtp::fmt::Shading> shading;
@@ -99,7 +100,9 @@ Answers answers(const std::string& path, const std::vector<rtp::fmt::Ray>& rays)
     rtp::fuzz::run_guarded([&] {
       rtp::InspectOptions o;
       o.verify = true;
-      a.verify_ok = rtp::inspect_package(reader, o).problems == 0;
+      const rtp::InspectResult r = rtp::inspect_package(reader, o);
+      a.verify_ok = r.problems == 0;
+      if (!r.listed.empty()) a.verify_first = r.listed.front();
     });
     rtp::fuzz::run_guarded([&] {
       const auto tracer = rtp::load_package_in_core(reader);
@@ -269,6 +272,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     ++c.differ_data;
   } else if (!got.verify_ok) {
     ++c.differ_verify_refused;
+    // RTP_FUZZ_VERBOSE=1: what each of these edited and what --verify said, to tell the classes apart.
+    if (const char* v = std::getenv("RTP_FUZZ_VERBOSE"); v && *v == '1')
+      std::fprintf(stderr, "fuzz_structures: %s (chunk kind %u id %llu) edited: answers differ:%s; --verify: %s\n", st.name,
+                   e.kind, (unsigned long long)e.id, d.c_str(), got.verify_first.c_str());
   } else {
     std::fprintf(stderr, "fuzz_structures: %s edited, --verify accepts, answers differ:%s\n", st.name, d.c_str());
     std::abort();
