@@ -253,6 +253,41 @@ TEST(OracleEmbree, PacketPathIsForTimingOnly) {
   if (!(packet.t < kInf)) std::printf("[   note   ] Embree's packet path still misses the straight-down ray\n");
 }
 
+// RayCoherence::kSingle (one rtcIntersect1 / rtcOccluded1 per ray, rtpack-bench's other Embree timing): the
+// same robust single-ray traversal as the stream, so ray by ray the same answers, invalid rays as misses.
+TEST(OracleEmbree, OneCallPerRayAnswersAsTheStream) {
+  for (const char* sample : {"/generated/gallery.glb", "/generated/far.glb"}) {
+    SCOPED_TRACE(sample);
+    const Scene scene = import_gltf(kSamples + sample);
+    const EmbreeOracle oracle(scene, OracleQuality::kHigh);
+    RayGenOptions opt;
+    opt.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t k) { oracle.closest(r, h, k); };
+    for (RayKind kind : {RayKind::kRandom, RayKind::kBounce, RayKind::kShadow}) {
+      SCOPED_TRACE(ray_kind_name(kind));
+      std::vector<fmt::Ray> rays = generate_rays(scene, kind, scaled(3001), opt);
+      rays[7].dir[0] = std::numeric_limits<float>::quiet_NaN();
+      const size_t n = rays.size();
+      std::vector<fmt::Hit> a(n), b(n);
+      std::vector<uint8_t> oa(n), ob(n);
+      const OracleStats sa = oracle.closest(rays.data(), a.data(), n, RayCoherence::kIncoherent);
+      const OracleStats sb = oracle.closest(rays.data(), b.data(), n, RayCoherence::kSingle);
+      oracle.occluded(rays.data(), oa.data(), n, RayCoherence::kIncoherent);
+      oracle.occluded(rays.data(), ob.data(), n, RayCoherence::kSingle);
+      EXPECT_EQ(sa.invalid, sb.invalid);
+      EXPECT_GE(sb.invalid, 1u);
+      size_t hit_diff = 0, occ_diff = 0, hits = 0;
+      for (size_t i = 0; i < n; ++i) {
+        hit_diff += std::memcmp(&a[i], &b[i], sizeof a[i]) != 0;
+        occ_diff += oa[i] != ob[i];
+        hits += a[i].t < kInf;
+      }
+      EXPECT_EQ(hit_diff, 0u);
+      EXPECT_EQ(occ_diff, 0u);
+      EXPECT_GT(hits, 10u) << "too few hits to compare";
+    }
+  }
+}
+
 TEST(OracleRays, DeterministicAndThreadIndependent) {
   const Scene scene = import_gltf(kSamples + "/generated/gallery.glb");
   const EmbreeOracle oracle(scene, OracleQuality::kMedium);

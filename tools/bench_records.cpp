@@ -12,10 +12,10 @@ void print_row(FILE* o, const Record& r) {
   const bool any = r.kind == RayKind::kShadow;
   const std::string order = r.packet ? "packet-" + std::to_string(r.packet) : order_name(r.order);
   std::fprintf(o,
-               "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
+               "%-8s %-7s %3d %-12s %3d %14.2f %14.2f %-8s %7.2f %8.1f  %" PRIu64 " / %" PRIu64 " / %" PRIu64 " / %" PRIu64
                " / %" PRIu64 " / %" PRIu64 "\n",
                ray_kind_name(r.kind), any ? "any" : "closest", r.width, order.c_str(), r.threads, r.rtpack_mrays, r.embree_mrays,
-               r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree, r.agreement.edge_ties,
+               r.embree_path, r.rtpack_mrays / r.embree_mrays, r.bytes_per_triangle, r.agreement.agree, r.agreement.edge_ties,
                r.agreement.precision_ties, r.agreement.failures, r.agreement.skipped, r.agreement.embree_errors);
   std::fflush(o);
 }
@@ -37,6 +37,9 @@ nlohmann::json trace_record_json(const Record& r, const KindData& k, const std::
           {"distinct_rays", k.distinct_rays},
           {"rtpack_mrays", r.rtpack_mrays},
           {"embree_mrays", r.embree_mrays},
+          {"embree_path", r.embree_path},
+          {"embree_stream_mrays", r.embree_stream_mrays > 0 ? nlohmann::json(r.embree_stream_mrays) : nlohmann::json()},
+          {"embree_single_mrays", r.embree_single_mrays > 0 ? nlohmann::json(r.embree_single_mrays) : nlohmann::json()},
           {"ratio", r.rtpack_mrays / r.embree_mrays},
           {"bytes_per_triangle", r.bytes_per_triangle},
           {"agree", r.agreement.agree},

@@ -21,7 +21,11 @@ struct Record {
   TraversalOrder order;
   uint32_t packet = 0;  // rays per packet (0: single rays)
   int threads = 0;
+  // Embree on its faster path for these rays (the ratio's peer): 16-ray packets for primary rays; for the
+  // others the faster of the rtcIntersect1M/rtcOccluded1M stream and one rtcIntersect1/rtcOccluded1 per ray.
   double rtpack_mrays = 0, embree_mrays = 0;
+  double embree_stream_mrays = 0, embree_single_mrays = 0;  // both timed for incoherent rays (0: not timed)
+  const char* embree_path = "stream";                       // "packet16", "stream" or "per-ray"
   double bytes_per_triangle = 0;
   Agreement agreement;
 };

@@ -195,25 +195,32 @@ void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std:
               trace_closest<W, W>(view, k.rays.data() + r.begin(), hits.data() + r.begin(), r.size(), topt);
           });
         };
-        auto embree_run = [&] {
+        auto embree_run = [&](RayCoherence c) {
           if (k.any)
-            embree.occluded(k.rays.data(), embree_occ.data(), n, k.coherence);
+            embree.occluded(k.rays.data(), embree_occ.data(), n, c);
           else
-            embree.closest(k.rays.data(), embree_hits.data(), n, k.coherence);
+            embree.closest(k.rays.data(), embree_hits.data(), n, c);
         };
+        // Incoherent rays: Embree both ways, its stream and one call per ray (either can be the faster).
+        const bool per_ray = k.coherence == RayCoherence::kIncoherent;
         // Interleaved repetitions (rtpack, Embree, rtpack, ...) after one warm-up of each, best of each:
         // a change of machine load during the run hits both sides alike.
-        double secs = std::numeric_limits<double>::infinity(), embree_secs = secs;
+        double secs = std::numeric_limits<double>::infinity(), embree_secs = secs, single_secs = secs;
         arena.execute([&] {
           rtpack_run();
-          embree_run();
+          embree_run(k.coherence);
+          if (per_ray) embree_run(RayCoherence::kSingle);
           for (int r = 0; r < cfg.reps; ++r) {
             auto t0 = Clock::now();
             rtpack_run();
             secs = std::min(secs, seconds_since(t0));
             t0 = Clock::now();
-            embree_run();
+            embree_run(k.coherence);
             embree_secs = std::min(embree_secs, seconds_since(t0));
+            if (!per_ray) continue;
+            t0 = Clock::now();
+            embree_run(RayCoherence::kSingle);
+            single_secs = std::min(single_secs, seconds_since(t0));
           }
         });
         Record rec;
@@ -223,7 +230,11 @@ void run_width(Config& cfg, const Scene& scene, const EmbreeOracle& embree, std:
         rec.packet = packet;
         rec.threads = t;
         rec.rtpack_mrays = double(n) / secs * 1e-6;
-        rec.embree_mrays = double(n) / embree_secs * 1e-6;
+        rec.embree_stream_mrays = double(n) / embree_secs * 1e-6;
+        rec.embree_single_mrays = per_ray ? double(n) / single_secs * 1e-6 : 0;
+        rec.embree_mrays = std::max(rec.embree_stream_mrays, rec.embree_single_mrays);
+        rec.embree_path = !per_ray ? (k.any ? "stream" : "packet16") : single_secs < embree_secs ? "per-ray" : "stream";
+        if (!per_ray) rec.embree_stream_mrays = 0;
         rec.bytes_per_triangle = bpt;
         // Verify the timed answers (untimed).
         if (k.any) {
@@ -288,12 +299,16 @@ int run(Config& cfg) {
     std::vector<uint8_t> occ(n);
     CompareOptions copt;
     copt.scene = &scene;
-    if (k.any) {
-      embree->occluded(k.rays.data(), occ.data(), n, k.coherence);
-      k.embree_timed_failures = check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, copt, k.skip.data()).failures;
-    } else {
-      embree->closest(k.rays.data(), hits.data(), n, k.coherence);
-      k.embree_timed_failures = compare_closest(k.rays.data(), k.ref_hits.data(), hits.data(), n, copt, k.skip.data()).failures;
+    for (RayCoherence c : {k.coherence, RayCoherence::kSingle}) {  // both timed paths of incoherent rays
+      if (c == RayCoherence::kSingle && k.coherence != RayCoherence::kIncoherent) continue;
+      if (k.any) {
+        embree->occluded(k.rays.data(), occ.data(), n, c);
+        k.embree_timed_failures += check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, copt, k.skip.data()).failures;
+      } else {
+        embree->closest(k.rays.data(), hits.data(), n, c);
+        k.embree_timed_failures +=
+            compare_closest(k.rays.data(), k.ref_hits.data(), hits.data(), n, copt, k.skip.data()).failures;
+      }
     }
     kinds.push_back(std::move(k));
   }
@@ -322,8 +337,10 @@ int run(Config& cfg) {
                    ray_kind_name(k.kind), k.kind == RayKind::kPrimary ? "packet" : "stream", k.embree_timed_failures);
   }
   // B/tri: the in-memory BVH (nodes + leaf blocks, raw) per unique triangle, not the stored package.
-  std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
-               "Embree Mrays/s", "ratio", "mem B/tri", "agree / edge ties / precision ties / FAILURES / skipped / Embree errors");
+  // Embree's column is its faster path for the row: packet16 (primary), stream (1M) or per-ray (one call each).
+  std::fprintf(o, "\n%-8s %-7s %3s %-12s %3s %14s %14s %-8s %7s %8s  %s\n", "kind", "query", "W", "order", "T", "rtpack Mrays/s",
+               "Embree Mrays/s", "path", "ratio", "mem B/tri",
+               "agree / edge ties / precision ties / FAILURES / skipped / Embree errors");
   std::fflush(o);
 
   std::vector<Record> records;

@@ -338,7 +338,12 @@ OracleStats EmbreeOracle::closest(const fmt::Ray* rays, fmt::Hit* hits, size_t n
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       },
-      [&](RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) { rtcIntersect1M(top, ctx, buf, m, sizeof(RTCRayHit)); },
+      [&](RTCIntersectContext* ctx, RTCRayHit* buf, unsigned m) {
+        if (coherence == RayCoherence::kSingle)
+          for (unsigned j = 0; j < m; ++j) rtcIntersect1(top, ctx, &buf[j]);
+        else
+          rtcIntersect1M(top, ctx, buf, m, sizeof(RTCRayHit));
+      },
       [&](size_t i, const RTCRayHit& rh) {
         fmt::Hit& h = hits[i];
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
@@ -360,7 +365,12 @@ OracleStats EmbreeOracle::occluded(const fmt::Ray* rays, uint8_t* occluded, size
       // A stream in both cases (the COHERENT flag lets Embree form packets). Not rtcOccluded16: the
       // Debian 3.13.5 AVX-512 build spins forever in it after an rtcIntersect1M call made inside a
       // one-thread tbb::task_arena (reproduced on samples/generated/gallery.glb).
-      [&](RTCIntersectContext* ctx, RTCRay* buf, unsigned m) { rtcOccluded1M(top, ctx, buf, m, sizeof(RTCRay)); },
+      [&](RTCIntersectContext* ctx, RTCRay* buf, unsigned m) {
+        if (coherence == RayCoherence::kSingle)
+          for (unsigned j = 0; j < m; ++j) rtcOccluded1(top, ctx, &buf[j]);
+        else
+          rtcOccluded1M(top, ctx, buf, m, sizeof(RTCRay));
+      },
       // Embree sets tfar = -inf on an occluded ray.
       [&](size_t i, const RTCRay& e) { occluded[i] = e.tfar == -kInf ? 1 : 0; });
 }

@@ -45,8 +45,10 @@ const char* quality_name(OracleQuality q);
 /// COHERENT flag (rtcOccluded16 hangs in the Debian build, see embree_oracle.cpp).
 /// kCoherent is for timing only: Embree's packet traversal is not robust (it misses a ray straight down
 /// from gallery.glb's orthographic camera, direction (0, -1, -2.2e-16), that the stream path hits).
-/// Reference answers always use kIncoherent.
-enum class RayCoherence { kIncoherent, kCoherent };
+/// Reference answers always use kIncoherent. kSingle: one rtcIntersect1 / rtcOccluded1 call per ray
+/// (INCOHERENT flag): in Embree 3.13.5 an incoherent 1M stream runs small hybrid packets, which one call
+/// per ray beats on some scenes (rtpack-bench times both and compares with the faster).
+enum class RayCoherence { kIncoherent, kCoherent, kSingle };
 
 /// Counts returned by every query.
 struct OracleStats {
