@@ -157,7 +157,7 @@ struct DagCase {
 };
 
 TEST_F(HostileCulling, EveryDagPoolInvariantIsCheckedAtDecode) {
-  const uint32_t nb = uint32_t(fmt::cull_node_bytes(kW));
+  constexpr uint32_t nb = uint32_t(fmt::cull_node_bytes(kW));
   const std::vector<DagCase> cases = {
       {"cell", false, false,
        [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t*) {
@@ -220,13 +220,13 @@ TEST_F(HostileCulling, EveryDagPoolInvariantIsCheckedAtDecode) {
            }
        }},
       {"box scale", true, true,
-       [nb](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
          reinterpret_cast<fmt::CullNode<kW>*>(cull + uint64_t(g[p].root) * nb)->scale[0] = -1;
          return "instance boxes: node " + std::to_string(g[p].root) +
                 " has a non-finite origin or a negative or non-finite scale";
        }},
       {"box child before its parent", true, true,
-       [nb](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
+       [](fmt::DagGrid* g, uint64_t p, uint32_t*, uint64_t*, uint8_t* cull) {
          auto* n = reinterpret_cast<fmt::CullNode<kW>*>(cull + uint64_t(g[p].root) * nb);
          for (int l = 0; l < kW; ++l)
            if (!fmt::ChildRef::is_empty(n->child[l]) && !fmt::ChildRef::is_leaf(n->child[l])) {
