@@ -40,6 +40,7 @@
 #include <tbb/task_arena.h>
 
 #include "bench_agreement.h"
+#include "bench_kinds.h"
 #include "bench_budget.h"
 #include "bench_convert.h"
 #include "bench_dag.h"
@@ -72,6 +73,7 @@ using bench::build_record_json;
 using bench::BuildRecord;
 using bench::Clock;
 using bench::KindData;
+using bench::make_kind;
 using bench::print_row;
 using bench::Record;
 using bench::sah_record_json;
@@ -118,15 +120,6 @@ std::vector<std::string> split_list(const std::string& s) {
   while (std::getline(ss, item, ','))
     if (!item.empty()) out.push_back(item);
   return out;
-}
-
-// Rays that differ in some byte.
-size_t distinct_rays(const std::vector<fmt::Ray>& rays) {
-  std::vector<std::array<uint32_t, 8>> keys(rays.size());
-  static_assert(sizeof(fmt::Ray) == sizeof(std::array<uint32_t, 8>));
-  for (size_t i = 0; i < rays.size(); ++i) std::memcpy(keys[i].data(), &rays[i], sizeof(fmt::Ray));
-  std::sort(keys.begin(), keys.end());
-  return size_t(std::unique(keys.begin(), keys.end()) - keys.begin());
 }
 
 template <int W>
@@ -276,41 +269,7 @@ int run(Config& cfg) {
   std::vector<KindData> kinds;
   for (RayKind kind : cfg.kinds) {
     progress(std::string("generating ") + ray_kind_name(kind) + " rays ...");
-    KindData k;
-    k.kind = kind;
-    k.any = kind == RayKind::kShadow;
-    RayGenOptions gen;
-    gen.seed = cfg.seed;
-    gen.closest = [&](const fmt::Ray* r, fmt::Hit* h, size_t n) { embree->closest(r, h, n); };
-    k.rays = generate_rays(scene, kind, cfg.rays, gen, &k.info);
-    // --hot-rays: the same few rays over and over, so their nodes and leaves stay in cache and the branch
-    // predictor learns their walks: what the tracers cost in instructions, without the cache misses and
-    // mispredictions of distinct rays (the default run has both).
-    if (cfg.hot_rays)
-      for (size_t i = cfg.hot_rays; i < k.rays.size(); ++i) k.rays[i] = k.rays[i % cfg.hot_rays];
-    k.distinct_rays = distinct_rays(k.rays);
-    const size_t n = k.rays.size();
-    k.ref_hits.resize(n);
-    embree->closest(k.rays.data(), k.ref_hits.data(), n);
-    k.skip = unsupported_mask(k.rays.data(), n);
-    k.coherence = kind == RayKind::kPrimary ? RayCoherence::kCoherent : RayCoherence::kIncoherent;
-    // Embree's answers on the path it is timed on are checked too (its packet path is not robust).
-    std::vector<fmt::Hit> hits(n);
-    std::vector<uint8_t> occ(n);
-    CompareOptions copt;
-    copt.scene = &scene;
-    for (RayCoherence c : {k.coherence, RayCoherence::kSingle}) {  // both timed paths of incoherent rays
-      if (c == RayCoherence::kSingle && k.coherence != RayCoherence::kIncoherent) continue;
-      if (k.any) {
-        embree->occluded(k.rays.data(), occ.data(), n, c);
-        k.embree_timed_failures += check_any_hit(k.rays.data(), k.ref_hits.data(), occ.data(), n, copt, k.skip.data()).failures;
-      } else {
-        embree->closest(k.rays.data(), hits.data(), n, c);
-        k.embree_timed_failures +=
-            compare_closest(k.rays.data(), k.ref_hits.data(), hits.data(), n, copt, k.skip.data()).failures;
-      }
-    }
-    kinds.push_back(std::move(k));
+    kinds.push_back(make_kind(scene, *embree, kind, cfg.rays, cfg.seed, cfg.hot_rays));
   }
 
   // The header now and each row as its configuration finishes (stdout, or stderr when stdout carries JSON).
