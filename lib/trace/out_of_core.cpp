@@ -24,6 +24,7 @@
 #include "layout/chunk_io.h"
 #include "layout/dag_query.h"
 #include "trace/batch_scheduler.h"
+#include "trace/stream_feed.h"
 #include "trace/top_level_walk.h"
 #include "trace/trace.h"
 
@@ -227,6 +228,10 @@ class Batched final : public OutOfCoreTracer {
         [](size_t) { return false; });
   }
 
+  std::unique_ptr<RayStream> open_stream(const StreamOptions& o) override {
+    return std::make_unique<batched::HostStream<W, B, Batched>>(*this, o);
+  }
+
  private:
   // One ray's walk to its next unculled batching point (kNone: finished). `tfar` is its current one.
   uint32_t advance(const fmt::Ray& ray, float tfar, TopPosition& pos, float& tstart, bool cull, PackageTraceStats& st) const {
@@ -249,7 +254,7 @@ class Batched final : public OutOfCoreTracer {
     }
   }
 
-  template <class, class, class, class>
+  template <class, class, class, class, class>
   friend class batched::Scheduler;
   template <class TraceBlock, class CurrentTfar, class Stopped>
   OutOfCoreStats run(const fmt::Ray* rays, size_t n, const PackageTraceOptions& o, uint32_t depth, TraceBlock&& trace_block,
@@ -289,6 +294,14 @@ class Batched final : public OutOfCoreTracer {
   void load(const std::vector<uint32_t>& chunks, const std::vector<uint32_t>& points) {
     cache_.acquire(chunks, [&](uint32_t index, const AlignedBytes& b) { decode(index, b); });
     for (uint32_t p : points) bind_meshes(p);
+  }
+
+  // The raw bytes loading point p would read now: its chunk and mesh segments not resident.
+  uint64_t point_load_bytes(uint32_t p) const {
+    uint64_t b = cache_.resident(res_.layout.point_chunk[p]) ? 0 : cache_.cost(res_.layout.point_chunk[p]);
+    for (uint32_t s : res_.layout.point_segments[p])
+      if (!cache_.resident(res_.layout.segment_chunk[s])) b += cache_.cost(res_.layout.segment_chunk[s]);
+    return b;
   }
 
   // True when the point's chunk and its mesh segments are in the cache (tracing it reads nothing).

@@ -15,6 +15,7 @@
 #include "reader/chunk_cache.h"
 #include "reader/reader.h"
 #include "trace/package_tracer.h"
+#include "trace/ray_stream.h"
 #include "trace/tracer.h"
 
 namespace rtp {
@@ -40,6 +41,9 @@ class OutOfCoreTracer : public Tracer {
   // that reach them later in their walks too (fewer reloads). Depth 1 is the one-point-at-a-time walk.
   // Multi-hit always walks one point at a time.
   virtual void set_speculation(uint32_t depth) = 0;
+  // A stream of rays for a renderer (ray_stream.h) over this tracer's cache; the tracer must outlive
+  // it, and one call at a time runs on the tracer (a flush, or closest / any / multi).
+  virtual std::unique_ptr<RayStream> open_stream(const StreamOptions& options) = 0;
 };
 
 // on_demand_bytes, minimum_budget, parse_memory_budget: tracer.h.

@@ -21,6 +21,7 @@ inline constexpr uint32_t kDefaultSpeculation = 16;
 struct TracerStats : PackageTraceStats {
   uint64_t rounds = 0;               // scheduling rounds (a set of batching points made resident)
   uint64_t passes = 0;               // tracing passes over them (rays moving between points of a round)
+  uint64_t dag_tests = 0;            // rays tested against a point's culling DAG before it was loaded
   ChunkCacheStats cache;             // chunks loaded, bytes read, hit rate, peak resident cache bytes
   uint64_t budget_bytes = 0;         // the cache's budget
   uint64_t fixed_bytes = 0;          // resident always: top level, descriptors, DAG pool
