@@ -1,6 +1,7 @@
 // The public reader API (rtpack/rtpack.h) over the container (lib/reader) and the in-core package
 // tracer (lib/trace): internal errors become rtpack::Error, internal types never cross the header.
 #include "rtpack/rtpack.h"
+#include "rtpack/package_impl.h"
 
 #include <tbb/task_arena.h>
 
@@ -9,6 +10,7 @@
 #include <cstring>
 #include <mutex>
 #include <new>
+#include <optional>
 
 #include "core/error.h"
 #include "formats/chunk.h"
@@ -33,18 +35,6 @@ static_assert(sizeof(Hit) == sizeof(rtp::fmt::Hit) && offsetof(Hit, prim) == off
 static_assert(sizeof(Shading) == sizeof(rtp::fmt::Shading) && offsetof(Shading, uv) == offsetof(rtp::fmt::Shading, uv));
 static_assert(Hit::kNone == rtp::fmt::Hit::kNone);
 
-// Runs f, turning the library's internal errors into rtpack::Error prefixed with the package path.
-template <class F>
-auto guarded(const std::string& path, F&& f) -> decltype(f()) {
-  try {
-    return f();
-  } catch (const rtp::Error& e) {
-    throw Error(int(e.code()), path + ": " + e.what());
-  } catch (const std::bad_alloc&) {
-    throw Error(int(rtp::ExitCode::kInternal), path + ": out of memory");
-  }
-}
-
 // camera_rays() and tile_order() take 1 to 2^28 pixels.
 void check_image_size(const char* what, int width, int height) {
   if (width <= 0 || height <= 0 || int64_t(width) * height > (int64_t(1) << 28))
@@ -67,59 +57,22 @@ const char* format_version() {
   return v.c_str();
 }
 
-struct Package::Impl {
-  std::string path;
-  std::unique_ptr<rtp::PackageReader> reader;
-  std::unique_ptr<rtp::Tracer> tracer;  // in core (open_tracer without a budget): takes concurrent calls
-  Info info;
-  std::vector<BatchingPoint> points;
-  std::vector<Mesh> meshes;
-  mutable std::once_flag attributes_once;
-  mutable std::unique_ptr<rtp::AttributeLookup> attributes;
-
-  rtp::PackageTraceOptions trace_options(const TraceOptions& o) const {
-    rtp::PackageTraceOptions opt;
-    opt.cull = o.cull;
-    const rtp::Isa best = rtp::detect_isa();
-    switch (o.isa) {
-      case Isa::kBest: opt.isa = best; break;
-      case Isa::kScalar: opt.isa = rtp::Isa::kScalar; break;
-      case Isa::kAvx2: opt.isa = rtp::Isa::kAvx2; break;
-      case Isa::kAvx512: opt.isa = rtp::Isa::kAvx512; break;
-    }
-    if (int(opt.isa) > int(best))
-      throw Error(int(rtp::ExitCode::kUsage),
-                  std::string("this CPU runs up to ") + rtp::isa_name(best) + ", not " + rtp::isa_name(opt.isa));
-    if (o.packet < 0 || !rtp::packet_size_ok(uint32_t(o.packet)))
-      throw Error(int(rtp::ExitCode::kUsage), "TraceOptions::packet = " + std::to_string(o.packet) +
-                                                  ": rays per packet are 4, 8 or 16, or 0 for single rays");
-    opt.packet = opt.isa == rtp::Isa::kScalar ? 0 : uint32_t(o.packet);  // the scalar reference has no packets
-    return opt;
-  }
-
-  // Runs f (a whole-array tracer call, parallel inside) with `threads` TBB workers, or the caller's
-  // arena for threads <= 0.
-  template <class F>
-  static auto with_threads(int threads, F&& f) -> decltype(f()) {
-    if (threads <= 0) return f();
-    tbb::task_arena arena(threads);
-    return arena.execute(f);
-  }
-};
-
 Package::Package(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Package::~Package() = default;
 Package::Package(Package&&) noexcept = default;
 Package& Package::operator=(Package&&) noexcept = default;
 
-Package Package::open(const std::string& path) {
+Package Package::open(const std::string& path) { return open(path, OpenOptions{}); }
+
+Package Package::open(const std::string& path, const OpenOptions& options) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   guarded(path, [&] {
-    impl->reader = std::make_unique<rtp::PackageReader>(path);
+    impl->reader = std::make_unique<rtp::PackageReader>(path, options.direct_io);
     const rtp::PackageReader& r = *impl->reader;
-    // Every chunk read, CRC-checked and structurally checked (reader/check_chunks.h) before any ray.
-    impl->tracer = rtp::open_tracer(r);
+    // In core: every chunk read, CRC-checked and structurally checked (reader/check_chunks.h) before
+    // any ray; out of core the resident ones now, the others as they load (ray_stream.cpp).
+    open_tracer_for(*impl, options);
     const rtp::fmt::Header& h = r.header();
     Info& in = impl->info;
     in.format_major = h.version_major;
@@ -187,6 +140,8 @@ size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptio
   rtp::TracerStats sum;
   const size_t n_hit = guarded(impl_->path, [&] {
     auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits);
+    std::optional<Turn> turn;
+    if (impl_->ooc == impl_->tracer.get() && impl_->ooc) turn.emplace(*impl_);
     sum = Impl::with_threads(options.threads,
                              [&] { return impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays), h, count, opt); });
     return size_t(std::count_if(h, h + count, [](const rtp::fmt::Hit& x) { return x.instance != rtp::fmt::Hit::kNone; }));
@@ -200,6 +155,8 @@ size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const
   opt.packet = 0;  // any hits through the package go ray by ray
   rtp::TracerStats sum;
   const size_t n_occ = guarded(impl_->path, [&] {
+    std::optional<Turn> turn;
+    if (impl_->ooc == impl_->tracer.get() && impl_->ooc) turn.emplace(*impl_);
     sum = Impl::with_threads(
         options.threads, [&] { return impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays), occluded, count, opt); });
     return size_t(std::count_if(occluded, occluded + count, [](uint8_t o) { return o != 0; }));

@@ -12,9 +12,15 @@
 // the library. A hostile or damaged file never crashes it: every failure is an rtpack::Error whose
 // message names the file, the chunk and what is wrong, and whose code() is the tools' exit code.
 // Thread-safety: a Package is immutable after open(); trace(), occluded() and shade() may be called from
-// any number of threads at once.
+// any number of threads at once (on a package opened out of core they take turns).
+//
+// Out of core (docs/library.md "Out of core"): Package::open(path, {.memory_budget = bytes}) keeps only
+// the top level, the descriptors and the culling DAGs resident and loads batching points and mesh
+// segments through a cache of that many bytes; a RayStream (Package::stream) batches a renderer's rays
+// at batching points and hands their hits back to a callback that may submit the next rays of its paths.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -137,11 +143,90 @@ class RTPACK_API Error : public std::runtime_error {
   int code_;
 };
 
+// How Package::open reads a package.
+struct OpenOptions {
+  // The decompressed bytes of geometry (batching points and their mesh segments) held at once; 0 (and
+  // memory_fraction 0): every chunk loaded and checked at open, in core. Below the largest batching point
+  // with its mesh segments, open() throws Error code 1 naming that minimum.
+  uint64_t memory_budget = 0;
+  // The budget as a fraction (0, 1] of the package's geometry bytes (Package::geometry_bytes), when
+  // memory_budget is 0; raised to the minimum when below it.
+  double memory_fraction = 0;
+  bool direct_io = false;  // read chunks with O_DIRECT (the page cache left out; falls back when unsupported)
+};
+
+// A ray submitted to a RayStream, 48 bytes: the ray, what the renderer needs to know it by, the kind.
+struct StreamRay {
+  Ray ray;
+  uint64_t payload = 0;  // handed back unchanged with the answer
+  uint32_t any = 0;      // 1: any hit (shadow ray: occluded in [tnear, tfar]?); 0: closest hit
+  uint32_t reserved = 0;
+};
+// Its answer, 48 bytes. Everything shading needs is computed while the hit's chunk is resident.
+struct StreamHit {
+  Hit hit;            // closest hit, as trace() gives it (t = +inf and kNone on a miss and for any-hit rays)
+  float normal[3];    // unit geometric normal of the hit triangle in world space, following its winding
+                      // (cross(v1 - v0, v2 - v0)); zeros on a miss and for any-hit rays
+  uint32_t occluded;  // any-hit rays: 1 when occluded; closest: 1 when hit
+  uint64_t payload;   // the StreamRay's
+};
+static_assert(sizeof(StreamRay) == 48 && sizeof(StreamHit) == 48);
+
+struct StreamOptions {
+  uint32_t max_in_flight = 1u << 16;  // rays traced at once (their state is ~100 bytes each); more wait
+  bool cull = true;                   // culling DAGs test rays before a point is loaded, while cheaper than loading it
+  Isa isa = Isa::kBest;
+  int threads = 0;  // 0: all cores (TBB); n: flush() runs in an arena of n threads
+};
+
+// What one RayStream::flush did.
+struct StreamStats {
+  uint64_t rays = 0;                   // rays traced (submitted before or during the flush)
+  uint64_t rounds = 0;                 // sets of batching points made resident together
+  uint64_t passes = 0;                 // tracing passes over a round's points (continuation rays join them)
+  uint64_t batching_point_visits = 0;  // a ray reaching a batching point
+  uint64_t culled_visits = 0;          // of those, answered by the point's DAG without loading it
+  uint64_t dag_tests = 0;              // rays tested against a DAG before the point was loaded
+  uint64_t chunks_loaded = 0;          // chunks read from the file (cache misses)
+  uint64_t bytes_read = 0;             // their stored (compressed) bytes
+  uint64_t raw_bytes_loaded = 0;       // their decompressed bytes
+  uint64_t budget_bytes = 0;           // the cache's budget
+  uint64_t peak_resident_bytes = 0;    // resident tables + cache + ray state, at the largest
+  double seconds = 0, load_seconds = 0, trace_seconds = 0, walk_seconds = 0;
+};
+
+// Batched tracing for renderers (Molenaar 2019 §4.1, §4.3): submit rays, then flush() traces them, rays
+// waiting at each batching point until it is loaded, and calls `on_hits` with the answered rays between
+// tracing passes; rays it submits (a path's next bounce, its shadow ray) are traced in the same flush,
+// with the points still resident. Answers are trace()'s and occluded()'s bit for bit, whatever the
+// budget, threads, culling or order. Threading: submit() and flush() from one thread at a time;
+// on_hits runs on flush()'s thread, one batch at a time, and may call submit() (and may itself run
+// parallel work); it must not call flush(), nor trace()/occluded() on an out-of-core package (both throw).
+// A flush that throws (a refused chunk, the callback's exception) leaves the stream empty.
+class RTPACK_API RayStream {
+ public:
+  ~RayStream();
+  RayStream(RayStream&&) noexcept;
+  RayStream& operator=(RayStream&&) noexcept;
+  void submit(const StreamRay* rays, size_t count);
+  StreamStats flush(const std::function<void(const StreamHit* hits, size_t count)>& on_hits);
+
+ private:
+  friend class Package;
+  struct Impl;
+  explicit RayStream(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
 class RTPACK_API Package {
  public:
   // Opens and checks the package (header, TOC, every chunk's CRC and structure) and loads it in core.
   // Throws rtpack::Error naming the file and the bad chunk.
   static Package open(const std::string& path);
+  // In core, or out of core under a memory budget (OpenOptions): then open() reads and checks the
+  // resident chunks, and every other chunk is checked as it loads; a bad one makes the call that loads
+  // it throw rtpack::Error (code 3) naming it.
+  static Package open(const std::string& path, const OpenOptions& options);
   ~Package();
   Package(Package&&) noexcept;
   Package& operator=(Package&&) noexcept;
@@ -149,6 +234,14 @@ class RTPACK_API Package {
   const Info& info() const;
   const std::vector<BatchingPoint>& batching_points() const;
   const std::vector<Mesh>& meshes() const;
+  bool out_of_core() const;
+  // The decompressed bytes of all batching points and mesh segments (what a budget is a part of), and
+  // the smallest budget open() accepts.
+  uint64_t geometry_bytes() const;
+  uint64_t minimum_budget() const;
+  // A ray stream over this package (which must outlive it). In core, the stream loads the geometry a
+  // second time into its own cache the first time one is made (open out of core to avoid that).
+  RayStream stream(const StreamOptions& options = {}) const;
 
   // Closest hit of each ray (hits[i] for rays[i]). Returns the number of rays that hit; fills *stats
   // when given.
@@ -163,8 +256,9 @@ class RTPACK_API Package {
   // the bounds when there is none), width x height, in `order` (row-major, top row first by default).
   std::vector<Ray> camera_rays(int width, int height, int camera = -1, PixelOrder order = PixelOrder::kRows) const;
 
+  struct Impl;  // internal (lib/rtpack/package_impl.h)
+
  private:
-  struct Impl;
   explicit Package(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
