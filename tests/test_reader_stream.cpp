@@ -163,6 +163,7 @@ TEST_F(ReaderStream, MisusesThrowWithTheToolsCodes) {
   rtpack::RayStream stream = pkg.stream();
   const std::vector<rtpack::Ray> rays = rays_into(pkg.info().bounds, 64, 9);
   std::vector<rtpack::StreamRay> in;
+  in.reserve(rays.size());
   for (const rtpack::Ray& r : rays) in.push_back({r, in.size(), 0, 0});
   stream.submit(in.data(), in.size());
   // Tracing through the package a stream holds, from its callback, would reenter the scheduler.

@@ -30,6 +30,7 @@
 #include "reader/ray_file.h"
 #include "reader/tile_order.h"
 #include "cli_checks.h"
+#include "path_trace_cli.h"
 #include "tool_version.h"
 
 namespace {
@@ -56,6 +57,7 @@ struct Args {
   int threads = 0, camera = -1, img_w = 0, img_h = 0;
   bool any = false, json = false, direct = false, no_cull = false, force_cull = false, prefetch = false, render = false;
   uint32_t multi = 0, speculation = rtp::kDefaultSpeculation, packet = 0;
+  rtp::tools::PathTraceCommand path;  // --path-trace
 };
 
 void add_options(CLI::App& app, Args& a) {
@@ -108,6 +110,17 @@ void add_options(CLI::App& app, Args& a) {
                "by default with --memory-budget, where a culled point is a chunk not read)")
       ->excludes(no_cull_opt);
   app.add_flag("--json", a.json, "print the counts as JSON on stdout");
+  // A renderer's workload on the streaming API (rtpack.h RayStream): docs/trace/path.md.
+  app.add_option("--path-trace", a.path.image,
+                 "path-trace the camera's view to this PNG through the streaming API (Lambert, sky and sun, shadow rays; "
+                 "--size, --spp, --bounces, --paths-in-flight, --seed, --memory-budget, --no-cull); the same bytes for any "
+                 "budget, thread count and culling");
+  app.add_option("--spp", a.path.spp, "--path-trace: samples (paths) per pixel (default 1)")->check(CLI::Range(1u, 4096u));
+  app.add_option("--bounces", a.path.bounces, "--path-trace: bounces after the primary hit (default 2)")
+      ->check(CLI::Range(0u, 16u));
+  app.add_option("--paths-in-flight", a.path.paths_in_flight, "--path-trace: paths traced at once, one wave each (default 16384)")
+      ->check(CLI::Range(1u, 1u << 24));
+  app.add_option("--seed", a.path.seed, "--path-trace: the random numbers' seed (default 1)");
   app.add_option("--packet", a.packet,
                  "closest hits in core: trace each run of N consecutive rays as a packet, N = 4, 8 or 16, or 0 for single "
                  "rays (same hits either way; default 16 with --image, whose rays go in Hilbert-ordered 4x4 tiles, else 0)")
@@ -117,6 +130,19 @@ void add_options(CLI::App& app, Args& a) {
 // What is wrong with a command line CLI11 accepted (options that exclude each other), or "" when nothing is;
 // sets the defaults that depend on other options.
 std::string usage_problem(const CLI::App& app, Args& a) {
+  if (!a.path.image.empty()) {
+    for (const char* o : {"--rays", "--hits", "--image", "--any", "--multi-hit", "--packet", "--make-camera-rays", "--shading",
+                          "--shade", "--cull", "--prefetch", "--speculation", "--order"})
+      if (app.count(o)) return std::string("--path-trace renders through the streaming API: leave out ") + o;
+    if (!parse_size(a.size, &a.path.width, &a.path.height)) return "--size " + a.size + ": expected WxH, e.g. 512x512";
+    if (!app.count("--size")) a.path.width = a.path.height = 512;
+    a.path.package = a.package, a.path.budget_text = a.budget_text, a.path.isa = a.isa;
+    a.path.camera = a.camera, a.path.threads = a.threads, a.path.no_cull = a.no_cull, a.path.direct = a.direct;
+    a.path.json = a.json;
+    return "";
+  }
+  for (const char* o : {"--spp", "--bounces", "--paths-in-flight", "--seed"})
+    if (app.count(o)) return std::string(o) + " belongs to --path-trace";
   a.render = !a.image_path.empty();
   if (a.render && (!a.rays_path.empty() || !a.make_rays.empty()))
     return "--image traces the camera's own rays: leave out --rays and --make-camera-rays";
@@ -443,5 +469,6 @@ int main(int argc, char** argv) {
     std::cerr << "rtpack-trace: " << problem << "\nRun with --help for more information.\n";
     return int(rtp::ExitCode::kUsage);
   }
-  return rtp::tools::run_reporting_errors("rtpack-trace", a.json, a.package, [&] { return trace(a); });
+  return rtp::tools::run_reporting_errors("rtpack-trace", a.json, a.package,
+                                          [&] { return a.path.image.empty() ? trace(a) : rtp::tools::run_path_trace(a.path); });
 }
