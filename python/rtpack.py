@@ -78,7 +78,7 @@ VERSION_MAJOR, VERSION_MINOR = 7, 0
 ALIGNMENT = 4096
 WIDTHS = (4, 8, 16)  # SPEC §1.1: the BVH width W and the leaf width B are each one of these
 CHUNK_MAGIC = 0x48435452  # "RTCH"
-MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 1024, 1 << 20  # SPEC §3: raw_size <= 1024 * stored_size + 2^20
+MAX_CHUNK_RATIO, MAX_CHUNK_SLACK = 32768, 1 << 20  # SPEC §3: raw_size <= 32768 * stored_size + 2^20
 MAX_JSON_DEPTH = 256  # arrays/objects nested deeper in the metadata are refused (lib/core/json_checked.h)
 READ_PIECE = 1 << 20  # zstd input and padding checks go through memory in pieces of this size
 FLAG_NORMALS, FLAG_UVS, FLAG_DAG = 1, 2, 4
@@ -493,7 +493,7 @@ class Package:
         return self._pread(int(e["offset"]), int(e["stored_size"]), self.label(i))
 
     # SPEC §3: the CRC of the stored bytes is checked before decompression; a zstd frame must declare
-    # raw_size as its content size (raw_size <= 1024 * stored_size + 2^20 was checked at open).
+    # raw_size as its content size (raw_size <= 32768 * stored_size + 2^20 was checked at open).
     def read(self, i):
         """Chunk i's raw (decompressed) bytes, CRC-checked."""
         e, label = self.toc[i], self.label(i)
