@@ -121,7 +121,9 @@ TEST_F(PathTrace, ASmallBudgetHoldsLessThanInCore) {
   ASSERT_EQ(ooc.code, 0) << ooc.err;
   const nlohmann::json j = nlohmann::json::parse(ooc.out);
   EXPECT_LT(j["total"]["peak_resident_bytes"].get<uint64_t>(), j["geometry_bytes"].get<uint64_t>());
-  if (in_core.max_rss_kib > 0 && ooc.max_rss_kib > 0) EXPECT_LT(ooc.max_rss_kib, in_core.max_rss_kib);
+  if (in_core.max_rss_kib > 0 && ooc.max_rss_kib > 0) {
+    EXPECT_LT(ooc.max_rss_kib, in_core.max_rss_kib);
+  }
 }
 
 }  // namespace RTP_UNITY_ID
