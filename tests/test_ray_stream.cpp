@@ -182,7 +182,7 @@ TEST_P(RayStreamTest, ContinuationRaysSubmittedFromTheCallbackAreAnsweredAsInCor
       stream->submit(&next, 1);
     }
   });
-  ASSERT_GT(all.size(), primary + 100) << "too few continuation rays to test anything";
+  ASSERT_GT(all.size(), primary + primary / 20) << "too few continuation rays to test anything";
   ASSERT_EQ(got.size(), all.size());
   EXPECT_EQ(st.rays, all.size());
   EXPECT_GT(st.passes, st.rounds) << "continuation rays never met a round's points while resident";
@@ -228,7 +228,7 @@ TEST_P(RayStreamTest, NormalsAreThoseOfTheHitTriangles) {
       ASSERT_NEAR(nl, 1.0, 1e-5);
     }
   });
-  EXPECT_GT(hits, 100u);
+  EXPECT_GT(hits, in.size() / 40);  // far.glb: about 5 % of the rays hit
 }
 
 TEST_P(RayStreamTest, RefusesAFlushFromItsOwnCallbackAndBadCaps) {
