@@ -141,7 +141,7 @@ size_t Package::trace(const Ray* rays, Hit* hits, size_t count, const TraceOptio
   const size_t n_hit = guarded(impl_->path, [&] {
     auto* h = reinterpret_cast<rtp::fmt::Hit*>(hits);
     std::optional<Turn> turn;
-    if (impl_->ooc == impl_->tracer.get() && impl_->ooc) turn.emplace(*impl_);
+    if (out_of_core()) turn.emplace(*impl_);  // one call at a time on the out-of-core tracer
     sum = Impl::with_threads(options.threads,
                              [&] { return impl_->tracer->closest(reinterpret_cast<const rtp::fmt::Ray*>(rays), h, count, opt); });
     return size_t(std::count_if(h, h + count, [](const rtp::fmt::Hit& x) { return x.instance != rtp::fmt::Hit::kNone; }));
@@ -156,7 +156,7 @@ size_t Package::occluded(const Ray* rays, uint8_t* occluded, size_t count, const
   rtp::TracerStats sum;
   const size_t n_occ = guarded(impl_->path, [&] {
     std::optional<Turn> turn;
-    if (impl_->ooc == impl_->tracer.get() && impl_->ooc) turn.emplace(*impl_);
+    if (out_of_core()) turn.emplace(*impl_);  // one call at a time on the out-of-core tracer
     sum = Impl::with_threads(
         options.threads, [&] { return impl_->tracer->any(reinterpret_cast<const rtp::fmt::Ray*>(rays), occluded, count, opt); });
     return size_t(std::count_if(occluded, occluded + count, [](uint8_t o) { return o != 0; }));
