@@ -82,6 +82,16 @@ TEST_F(PathTrace, SameImageBytesForEveryBudgetThreadCountAndCulling) {
         if (percent == 5 && cull) loads_at_5 = j["total"]["chunks_loaded"].get<uint64_t>();
       }
   EXPECT_GT(loads_at_5, 0u);
+  // Refilled paths (a new path whenever one ends, one flush): the same paths, the same rays, the same image.
+  for (const char* budget : {"100%", "5%"}) {
+    const auto [j, png] =
+        render(std::string("refill_") + (budget[0] == '1' ? "100" : "5"), {"--refill", "--memory-budget", budget});
+    ASSERT_TRUE(j.is_object()) << budget;
+    EXPECT_TRUE(j["refill"].get<bool>());
+    EXPECT_EQ(j["waves"].size(), 1u) << budget << ": a refilled render is one flush";
+    EXPECT_EQ(j["total"]["rays"], in_core["total"]["rays"]) << budget;
+    EXPECT_TRUE(png == want) << budget << ": the refilled image differs from the in-core render";
+  }
 }
 
 TEST_F(PathTrace, TheImageIsAPictureThatDependsOnTheSeed) {

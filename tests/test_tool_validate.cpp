@@ -114,7 +114,8 @@ TEST(ValidateTool, PassesOnEverySampleAgainstEmbreeAndInCore) {
     const auto j = nlohmann::json::parse(a.out);
     EXPECT_TRUE(j["ok"].get<bool>());
     EXPECT_EQ(j["reference"], "embree");
-    ASSERT_EQ(j["kinds"].size(), 6u);
+    ASSERT_EQ(j["kinds"].size(), 7u);
+    EXPECT_EQ(j["kinds"][6]["kind"], "path");
     uint64_t embree_errors = 0;
     for (const auto& k : j["kinds"]) {
       EXPECT_EQ(k["failures"], 0) << k.dump();
@@ -179,7 +180,7 @@ TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
   const std::string pkg = (dir / "gallery.rtp").string();
   convert_to(src, pkg, 8, 0);
   const ToolResult good =
-      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random,path"}, dir);
   ASSERT_EQ(good.code, 0) << good.out << good.err;
   ConvertSettings dry;
   dry.input = src;
@@ -229,9 +230,10 @@ TEST(ValidateTool, FailsOnAWrongTriangleNamingTheRays) {
   });
   ASSERT_GT(collapsed, 0u);
   const ToolResult bad =
-      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random"}, dir);
+      run_tool("rtpack-validate", {pkg, "--source", src, "--rays", ray_count(), "--kinds", "primary,random,path"}, dir);
   EXPECT_EQ(bad.code, 3) << bad.out << bad.err;
   EXPECT_NE(bad.out.find("FAIL primary ray "), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("FAIL path ray "), std::string::npos) << bad.out;  // the ray stream's answers are judged too
   EXPECT_NE(bad.out.find("FAILED: some answers are wrong"), std::string::npos) << bad.out;
   EXPECT_NE(bad.err.find("rays answered wrongly"), std::string::npos) << bad.err;
   fs::remove_all(dir);

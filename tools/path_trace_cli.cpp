@@ -72,9 +72,9 @@ int render(const PathTraceCommand& c) {
     if (!c.budget_text.empty()) oo.memory_budget = parse_memory_budget(c.budget_text, geometry);
   }
   const rtpack::Package pkg = rtpack::Package::open(c.package, oo);
-  PathTraceOptions o;
+  pathtracer::PathTraceOptions o;
   o.width = c.width, o.height = c.height, o.camera = c.camera;
-  o.spp = c.spp, o.bounces = c.bounces, o.paths_in_flight = c.paths_in_flight, o.seed = c.seed;
+  o.spp = c.spp, o.bounces = c.bounces, o.paths_in_flight = c.paths_in_flight, o.seed = c.seed, o.refill = c.refill;
   o.stream.cull = !c.no_cull;
   o.stream.threads = c.threads;
   o.stream.isa = c.isa == "avx512"   ? rtpack::Isa::kAvx512
@@ -82,11 +82,11 @@ int render(const PathTraceCommand& c) {
                  : c.isa == "scalar" ? rtpack::Isa::kScalar
                                      : rtpack::Isa::kBest;
   o.progress = !c.json && (isatty(2) || std::getenv("RTP_PROGRESS"));
-  const PathTraceResult r = path_trace(pkg, o);
+  const pathtracer::PathTraceResult r = pathtracer::path_trace(pkg, o);
   image::Rgb8 img;
   img.width = c.width, img.height = c.height, img.rgb = r.rgb;
-  const std::vector<uint8_t> png = image::encode_png(img);
-  write_output_file(c.image, png.data(), png.size());
+  const std::vector<uint8_t> bytes = image::encode_for_path(img, c.image);  // PNG, or PPM for a .ppm name
+  write_output_file(c.image, bytes.data(), bytes.size());
   if (c.json) {
     nlohmann::json waves = nlohmann::json::array();
     for (const rtpack::StreamStats& s : r.waves) waves.push_back(stats_json(s));
@@ -97,6 +97,7 @@ int render(const PathTraceCommand& c) {
                         {"bounces", c.bounces},
                         {"paths", r.paths},
                         {"paths_in_flight", c.paths_in_flight},
+                        {"refill", c.refill},
                         {"seed", c.seed},
                         {"out_of_core", pkg.out_of_core()},
                         {"culling", !c.no_cull},

@@ -11,7 +11,7 @@ struct PathTraceCommand {
   int width = 512, height = 512, camera = -1, threads = 0;
   uint32_t spp = 1, bounces = 2, paths_in_flight = 16384;
   uint64_t seed = 1;
-  bool no_cull = false, direct = false, json = false;
+  bool no_cull = false, direct = false, json = false, refill = false;
 };
 
 int run_path_trace(const PathTraceCommand& c);

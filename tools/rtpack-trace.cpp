@@ -112,7 +112,8 @@ void add_options(CLI::App& app, Args& a) {
   app.add_flag("--json", a.json, "print the counts as JSON on stdout");
   // A renderer's workload on the streaming API (rtpack.h RayStream): docs/trace/path.md.
   app.add_option("--path-trace", a.path.image,
-                 "path-trace the camera's view to this PNG through the streaming API (Lambert, sky and sun, shadow rays; "
+                 "path-trace the camera's view to this PNG (binary PPM for a .ppm name) through the streaming API (Lambert, sky "
+                 "and sun, shadow rays; "
                  "--size, --spp, --bounces, --paths-in-flight, --seed, --memory-budget, --no-cull); the same bytes for any "
                  "budget, thread count and culling");
   app.add_option("--spp", a.path.spp, "--path-trace: samples (paths) per pixel (default 1)")->check(CLI::Range(1u, 4096u));
@@ -121,6 +122,8 @@ void add_options(CLI::App& app, Args& a) {
   app.add_option("--paths-in-flight", a.path.paths_in_flight, "--path-trace: paths traced at once, one wave each (default 16384)")
       ->check(CLI::Range(1u, 1u << 24));
   app.add_option("--seed", a.path.seed, "--path-trace: the random numbers' seed (default 1)");
+  app.add_flag("--refill", a.path.refill,
+               "--path-trace: start a new path whenever one ends (one flush for the image) instead of waves; same image");
   app.add_option("--packet", a.packet,
                  "closest hits in core: trace each run of N consecutive rays as a packet, N = 4, 8 or 16, or 0 for single "
                  "rays (same hits either way; default 16 with --image, whose rays go in Hilbert-ordered 4x4 tiles, else 0)")
@@ -141,7 +144,7 @@ std::string usage_problem(const CLI::App& app, Args& a) {
     a.path.json = a.json;
     return "";
   }
-  for (const char* o : {"--spp", "--bounces", "--paths-in-flight", "--seed"})
+  for (const char* o : {"--spp", "--bounces", "--paths-in-flight", "--seed", "--refill"})
     if (app.count(o)) return std::string(o) + " belongs to --path-trace";
   a.render = !a.image_path.empty();
   if (a.render && (!a.rays_path.empty() || !a.make_rays.empty()))

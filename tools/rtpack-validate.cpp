@@ -1,5 +1,6 @@
-// rtpack-validate: is this package right? Traces test rays of every kind through the package out of
-// core (under a memory budget, lib/trace/out_of_core.h) and checks every answer, ray by ray, against an
+// rtpack-validate: is this package right? Traces test rays of every kind, and a renderer's path workload
+// through the ray stream (validate_paths.h), through the package out of core (under a memory budget,
+// lib/trace/out_of_core.h) and checks every answer, ray by ray, against an
 // independent reference: Embree ROBUST built from the source glTF (--source; prepared with the options
 // the package records, TESTING.md verdicts: agree / edge tie / precision tie / failure; where the package
 // and Embree disagree, a double reference decides (brute force up to kExactLimit instanced triangles,
@@ -28,6 +29,7 @@
 #include "trace/out_of_core.h"
 #include "trace/tracer.h"
 #include "cli_checks.h"
+#include "validate_paths.h"
 #include "tool_version.h"
 
 namespace {
@@ -170,7 +172,7 @@ void add_options(CLI::App& app, Args& a) {
   app.add_option("--allow-path", a.allow, "also read the source's external buffers from DIR (as rtpack-convert)");
   app.add_option("--rays", a.per_kind, "rays per kind (default 10000)")->check(CLI::Range(size_t(1), size_t(100000000)));
   a.kinds_opt = app.add_option("--kinds", a.kinds_text,
-                               "comma-separated ray kinds (default: all; without --source: primary,random,shadow)");
+                               "comma-separated ray kinds (default: all; without --source: primary,random,shadow,path)");
   a.budget_opt = app.add_option("--memory-budget", a.budget_text,
                                 "cache budget for batching points and mesh segments: bytes (256MiB, 2GB) or "
                                 "a percentage of the package's on-demand bytes (default 25%, raised to the "
@@ -188,8 +190,9 @@ std::vector<std::string> ray_kinds(const Args& a, bool embree) {
                      "--kinds: empty; name at least one ray kind, or leave the option out for the default");
   std::vector<std::string> kinds;
   if (a.kinds_text.empty()) {
-    if (!embree) return {"primary", "random", "shadow"};
+    if (!embree) return {"primary", "random", "shadow", "path"};
     for (rtp::RayKind k : rtp::kAllRayKinds) kinds.push_back(rtp::ray_kind_name(k));
+    kinds.push_back("path");
     return kinds;
   }
   for (size_t i = 0; i <= a.kinds_text.size();) {
@@ -198,11 +201,12 @@ std::vector<std::string> ray_kinds(const Args& a, bool embree) {
     i = j + 1;
   }
   for (const std::string& k : kinds) {
-    const bool known = embree ? rtp::parse_ray_kind(k).has_value() : (k == "primary" || k == "random" || k == "shadow");
+    const bool known =
+        k == "path" || (embree ? rtp::parse_ray_kind(k).has_value() : (k == "primary" || k == "random" || k == "shadow"));
     if (!known)
       throw rtp::Error(rtp::ExitCode::kUsage, "--kinds: '" + k + "' is not a ray kind" +
-                                                  (embree ? " (primary, random, bounce, shadow, inside, short)"
-                                                          : " without --source (primary, random, shadow)"));
+                                                  (embree ? " (primary, random, bounce, shadow, inside, short, path)"
+                                                          : " without --source (primary, random, shadow, path)"));
   }
   return kinds;
 }
@@ -255,27 +259,12 @@ References open_references(const rtp::PackageReader& reader, const Args& a) {
   return refs;
 }
 
-void accumulate(rtp::OutOfCoreStats& total, const rtp::OutOfCoreStats& s) {
-  total.rays += s.rays;
-  total.point_visits += s.point_visits;
-  total.culled_visits += s.culled_visits;
-  total.rounds += s.rounds;
-  total.cache.loads += s.cache.loads;
-  total.cache.requests += s.cache.requests;
-  total.cache.hits += s.cache.hits;
-  total.cache.bytes_read += s.cache.bytes_read;
-  total.cache.peak_resident_bytes = std::max(total.cache.peak_resident_bytes, s.cache.peak_resident_bytes);
-  total.peak_resident_bytes = std::max(total.peak_resident_bytes, s.peak_resident_bytes);
-  total.total_seconds += s.total_seconds;
-}
-
-// Without --source: the out-of-core answers must be the in-core tracer's, byte for byte.
-void compare_with_in_core(rtp::Tracer& in_core, const std::vector<Ray>& rays, const std::vector<Hit>& got,
-                          const std::vector<uint8_t>& occ, const rtp::PackageTraceOptions& opt, KindResult& kr) {
+// Without --source: the out-of-core answers must be the in-core tracer's, byte for byte (closest hits,
+// then occlusion).
+void closest_as_in_core(rtp::Tracer& in_core, const std::vector<Ray>& rays, const std::vector<Hit>& got,
+                        const rtp::PackageTraceOptions& opt, KindResult& kr) {
   std::vector<Hit> ref(rays.size());
   in_core.closest(rays.data(), ref.data(), rays.size(), opt);
-  std::vector<uint8_t> ref_occ(rays.size());
-  in_core.any(rays.data(), ref_occ.data(), rays.size(), opt);
   kr.closest.rays = rays.size();
   const size_t max_examples = rtp::CompareOptions{}.max_examples;
   for (size_t i = 0; i < rays.size(); ++i) {
@@ -287,6 +276,11 @@ void compare_with_in_core(rtp::Tracer& in_core, const std::vector<Ray>& rays, co
     if (kr.closest.first_failures.size() < max_examples)
       kr.closest.first_failures.push_back({i, rtp::Verdict::kFail, rays[i], ref[i], got[i]});
   }
+}
+void any_as_in_core(rtp::Tracer& in_core, const std::vector<Ray>& rays, const std::vector<uint8_t>& occ,
+                    const rtp::PackageTraceOptions& opt, KindResult& kr) {
+  std::vector<uint8_t> ref_occ(rays.size());
+  in_core.any(rays.data(), ref_occ.data(), rays.size(), opt);
   for (size_t i = 0; i < rays.size(); ++i) kr.any_differ += occ[i] != ref_occ[i];
   kr.any.rays = rays.size();
   kr.any.failures = kr.any_differ;
@@ -308,8 +302,8 @@ KindResult check_kind(const rtp::PackageReader& reader, rtp::Tracer& ooc, Refere
   std::vector<uint8_t> occ(rays.size());
   const rtp::TracerStats closest = ooc.closest(rays.data(), got.data(), rays.size(), opt);
   const rtp::TracerStats any = ooc.any(rays.data(), occ.data(), rays.size(), opt);
-  accumulate(total, closest);
-  accumulate(total, any);
+  rtp::tools::accumulate(total, closest);
+  rtp::tools::accumulate(total, any);
   KindResult kr;
   kr.kind = kind;
   if (refs.oracle) {
@@ -322,11 +316,44 @@ KindResult check_kind(const rtp::PackageReader& reader, rtp::Tracer& ooc, Refere
     kr.closest = rtp::compare_closest(rays.data(), ref.data(), got.data(), rays.size(), co, skip.data());
     kr.any = rtp::check_any_hit(rays.data(), ref.data(), occ.data(), rays.size(), co, skip.data(), got.data());
   } else {
-    compare_with_in_core(*refs.in_core, rays, got, occ, opt, kr);
+    closest_as_in_core(*refs.in_core, rays, got, opt, kr);
+    any_as_in_core(*refs.in_core, rays, occ, opt, kr);
   }
   if (!a.json)
     std::fprintf(stderr, "  %-8s %zu rays traced out of core (%llu chunks loaded)\n", kind.c_str(), rays.size(),
                  (unsigned long long)closest.cache.loads + any.cache.loads);
+  return kr;
+}
+
+// The path workload (validate_paths.h): its rays as the stream answered them, judged as above.
+KindResult check_paths(const rtp::PackageReader& reader, rtp::OutOfCoreTracer& ooc, References& refs, const Args& a,
+                       const rtp::PackageTraceOptions& opt, rtp::OutOfCoreStats& total) {
+  rtp::tools::PathWorkloadOptions po;
+  po.paths = a.per_kind, po.seed = a.seed, po.trace = opt;
+  const rtp::tools::PathWorkload w = rtp::tools::trace_path_workload(reader, ooc, po);
+  rtp::tools::accumulate(total, w.stats);
+  KindResult kr;
+  kr.kind = "path";
+  if (refs.oracle) {
+    rtp::CompareOptions co;
+    co.scene = &refs.scene;
+    co.exact = refs.exact.get();
+    std::vector<Hit> ref(w.closest_rays.size());
+    refs.oracle->closest(w.closest_rays.data(), ref.data(), ref.size());
+    std::vector<uint8_t> skip = rtp::unsupported_mask(w.closest_rays.data(), w.closest_rays.size());
+    kr.closest = rtp::compare_closest(w.closest_rays.data(), ref.data(), w.closest_hits.data(), ref.size(), co, skip.data());
+    ref.resize(w.shadow_rays.size());
+    refs.oracle->closest(w.shadow_rays.data(), ref.data(), ref.size());
+    skip = rtp::unsupported_mask(w.shadow_rays.data(), w.shadow_rays.size());
+    kr.any = rtp::check_any_hit(w.shadow_rays.data(), ref.data(), w.occluded.data(), ref.size(), co, skip.data());
+  } else {
+    closest_as_in_core(*refs.in_core, w.closest_rays, w.closest_hits, opt, kr);
+    any_as_in_core(*refs.in_core, w.shadow_rays, w.occluded, opt, kr);
+  }
+  if (!a.json)
+    std::fprintf(stderr,
+                 "  %-8s %zu paths in %u waves: %zu closest and %zu shadow rays through the ray stream (%llu chunks loaded)\n",
+                 "path", w.paths, w.waves, w.closest_rays.size(), w.shadow_rays.size(), (unsigned long long)w.stats.cache.loads);
   return kr;
 }
 
@@ -403,9 +430,7 @@ int validate(const Args& a) {
   b.minimum = rtp::minimum_budget(reader);
   b.budget = rtp::parse_memory_budget(a.budget_text, b.on_demand);
   if (a.budget_opt->count() == 0) b.budget = std::max(b.budget, b.minimum);  // the default never refuses
-  rtp::TracerConfig tc;
-  tc.memory_budget = b.budget;
-  const std::unique_ptr<rtp::Tracer> ooc = rtp::open_tracer(reader, tc);
+  const std::unique_ptr<rtp::OutOfCoreTracer> ooc = rtp::open_out_of_core(reader, b.budget);
   if (!a.json)
     std::fprintf(stderr, "reference: %s\n", a.source.empty() ? "the in-core tracer" : "Embree ROBUST on the source glTF");
   References refs = open_references(reader, a);
@@ -415,7 +440,9 @@ int validate(const Args& a) {
   std::vector<KindResult> results;
   results.reserve(kinds.size());
   rtp::OutOfCoreStats total;
-  for (const std::string& kind : kinds) results.push_back(check_kind(reader, *ooc, refs, a, kind, opt, total));
+  for (const std::string& kind : kinds)
+    results.push_back(kind == "path" ? check_paths(reader, *ooc, refs, a, opt, total)
+                                     : check_kind(reader, *ooc, refs, a, kind, opt, total));
   uint64_t failures = 0;
   for (const KindResult& k : results) failures += k.closest.failures + k.any.failures;
   if (a.json)

@@ -37,5 +37,9 @@ Rgb8 shade(const fmt::Ray* rays, const fmt::Hit* hits, int width, int height, Sh
 
 // PNG bytes of the image (8-bit RGB).
 std::vector<uint8_t> encode_png(const Rgb8& image);
+// Binary PPM (P6, maxval 255) bytes of the image: what a renderer without an image library writes.
+std::vector<uint8_t> encode_ppm(const Rgb8& image);
+// encode_ppm for a path ending in ".ppm" (any case), else encode_png.
+std::vector<uint8_t> encode_for_path(const Rgb8& image, const std::string& path);
 
 }  // namespace rtp::image

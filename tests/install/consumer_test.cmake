@@ -1,6 +1,7 @@
-# CTest install_consumer (issue 12): install the reader library to a temporary prefix, build
-# docs/examples/trace against it with find_package(rtpack CONFIG REQUIRED), trace camera rays of a sample
-# package with it and compare the hit file byte for byte with rtpack-trace's.
+# CTest install_consumer (issues 12, 54): install the reader library to a temporary prefix, build
+# docs/examples/trace and docs/examples/path_trace against it with find_package(rtpack CONFIG REQUIRED),
+# trace camera rays of a sample package and path-trace another out of core, and compare the hit file and
+# the image byte for byte with rtpack-trace's.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -P consumer_test.cmake
 foreach(v BUILD SOURCE WORK)
   if(NOT DEFINED ${v})
@@ -66,7 +67,29 @@ if(NOT hits_size EQUAL 384000)
   message(FATAL_ERROR "example.hits has ${hits_size} bytes, expected 19200 x 20")
 endif()
 
-# 4. A damaged package: a clear message and the library's exit code, no crash.
+# 4. The out-of-core renderer (docs/examples/path_trace) built against the same prefix: a sample
+# path-traced at a 10 % budget through the installed library's RayStream, the same pixels as rtpack-trace
+# --path-trace in core.
+run(${CMAKE_COMMAND} -S ${SOURCE}/docs/examples/path_trace -B ${WORK}/path-example -DCMAKE_BUILD_TYPE=Release
+    -DCMAKE_PREFIX_PATH=${WORK}/prefix)
+run(${CMAKE_COMMAND} --build ${WORK}/path-example)
+run(${BUILD}/rtpack-convert ${SOURCE}/samples/generated/forest-small.glb -q --chunk-target 2000 -o ${WORK}/forest.rtp)
+run(${WORK}/path-example/render_paths ${WORK}/forest.rtp ${WORK}/example.ppm 96x72 10% 1024)
+message(STATUS "${RUN_OUT}")
+if(NOT RUN_OUT MATCHES "forest\.rtp: out of core" OR NOT RUN_OUT MATCHES " [1-9][0-9]* chunks loaded")
+  message(FATAL_ERROR "the example did not render out of core: ${RUN_OUT}")
+endif()
+run(${BUILD}/rtpack-trace ${WORK}/forest.rtp --path-trace ${WORK}/trace.ppm --size 96x72)
+execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files ${WORK}/trace.ppm ${WORK}/example.ppm RESULT_VARIABLE same)
+if(NOT same EQUAL 0)
+  message(FATAL_ERROR "the installed library's out-of-core image differs from rtpack-trace's in core (${WORK}/trace.ppm vs example.ppm)")
+endif()
+file(SIZE ${WORK}/example.ppm ppm_size)
+if(NOT ppm_size EQUAL 20749)  # the 13-byte header "P6 96 72 255" (newlines between) and 96 x 72 x 3
+  message(FATAL_ERROR "example.ppm has ${ppm_size} bytes, expected 13 + 96 x 72 x 3")
+endif()
+
+# 5. A damaged package: a clear message and the library's exit code, no crash.
 file(WRITE ${WORK}/bad.rtp "RTPACK00 not a package")
 execute_process(COMMAND ${WORK}/example/trace_rays ${WORK}/bad.rtp ${WORK}/cam.rays ${WORK}/bad.hits
                 RESULT_VARIABLE rc ERROR_VARIABLE err)

@@ -1,8 +1,8 @@
 #pragma once
 // A minimal path tracer on the public streaming API (rtpack/rtpack.h RayStream), as a renderer writes
-// one: rtpack-trace --path-trace. Lambert surfaces (an albedo per instance), a sky and a sun with
+// one: the example render_paths.cpp built against the installed library, and rtpack-trace --path-trace. Lambert surfaces (an albedo per instance), a sky and a sun with
 // shadow rays; paths in waves of `paths_in_flight`, each wave one flush whose callback submits every
-// path's next bounce and shadow ray (Molenaar 2019 §5.3). Each path's random numbers come from (seed,
+// path's next bounce and shadow ray (Molenaar 2019 §5.3), or (refill) a new path whenever one ends. Each path's random numbers come from (seed,
 // path, bounce) and its radiance is summed in a fixed order, so the image bytes depend on nothing but the
 // package and these options: not on the budget, the threads, culling, or in core vs out of core.
 #include <cstdint>
@@ -11,7 +11,7 @@
 
 #include "rtpack/rtpack.h"
 
-namespace rtp::tools {
+namespace pathtracer {
 
 struct PathTraceOptions {
   int width = 512, height = 512, camera = -1;
@@ -19,7 +19,10 @@ struct PathTraceOptions {
   uint32_t paths_in_flight = 16384;
   uint64_t seed = 1;
   rtpack::StreamOptions stream;  // cull, threads, ISA; max_in_flight is set from paths_in_flight
-  bool progress = false;         // one line per wave on stderr (a terminal, or RTP_PROGRESS=1)
+  // Start a new path as soon as one ends, keeping paths_in_flight paths live and the whole render one
+  // flush, instead of waves that drain before the next starts. Same image.
+  bool refill = false;
+  bool progress = false;  // one line per wave (per tenth of the paths with refill) on stderr
 };
 
 struct PathTraceResult {
@@ -32,4 +35,4 @@ struct PathTraceResult {
 
 PathTraceResult path_trace(const rtpack::Package& package, const PathTraceOptions& options);
 
-}  // namespace rtp::tools
+}  // namespace pathtracer

@@ -1,4 +1,4 @@
-// rtpack-trace --path-trace: the path tracer of path_trace.h.
+// The path tracer of path_trace.h (render_paths.cpp, rtpack-trace --path-trace).
 #include "path_trace.h"
 
 #include <algorithm>
@@ -6,9 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <unistd.h>
 
-namespace rtp::tools {
+namespace pathtracer {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
@@ -86,29 +85,36 @@ PathTraceResult path_trace(const rtpack::Package& pkg, const PathTraceOptions& o
   std::vector<Path> paths(o.paths_in_flight);
   for (Path& p : paths) p.slot.resize(slots), p.sun.resize(slots), p.org.resize(o.bounces + 1), p.dir.resize(o.bounces + 1);
   std::vector<rtpack::StreamRay> batch;
-  const uint64_t n_waves = (total_paths + o.paths_in_flight - 1) / o.paths_in_flight;
+  // Paths start in slot order: a wave's first `paths_in_flight`, or with `refill` the next path whenever
+  // one ends (its slot reused; the render one flush).
+  uint64_t next = 0, done = 0;
+  auto start = [&](uint32_t k) {
+    Path& p = paths[k];
+    p.id = next++;
+    p.throughput = {1, 1, 1};
+    p.outstanding = 1;
+    std::fill(p.slot.begin(), p.slot.end(), V3{0, 0, 0});
+    const rtpack::Ray& r = camera[p.id % pixels];
+    p.org[0] = {r.org[0], r.org[1], r.org[2]};
+    p.dir[0] = {r.dir[0], r.dir[1], r.dir[2]};
+    batch.push_back({r, payload(k, 0), 0, 0});
+  };
+  auto finish = [&](uint32_t k) {
+    const Path& p = paths[k];
+    V3 sum{0, 0, 0};
+    for (const V3& c : p.slot) sum = add(sum, c);
+    float* out = &radiance[size_t(p.id % pixels * o.spp + p.id / pixels) * 3];
+    out[0] = sum.x, out[1] = sum.y, out[2] = sum.z;
+    ++done;
+    if (o.progress && o.refill && done * 10 / total_paths != (done - 1) * 10 / total_paths)
+      std::fprintf(stderr, "path-trace: %llu of %llu paths done\n", (unsigned long long)done, (unsigned long long)total_paths);
+    if (o.refill && next < total_paths) start(k);
+  };
+  const uint64_t n_waves = o.refill ? 1 : (total_paths + o.paths_in_flight - 1) / o.paths_in_flight;
   for (uint64_t w = 0; w < n_waves; ++w) {
-    const uint64_t first = w * o.paths_in_flight;
-    const uint32_t count = uint32_t(std::min<uint64_t>(o.paths_in_flight, total_paths - first));
     batch.clear();
-    for (uint32_t k = 0; k < count; ++k) {
-      Path& p = paths[k];
-      p.id = first + k;
-      p.throughput = {1, 1, 1};
-      p.outstanding = 1;
-      std::fill(p.slot.begin(), p.slot.end(), V3{0, 0, 0});
-      const rtpack::Ray& r = camera[p.id % pixels];
-      p.org[0] = {r.org[0], r.org[1], r.org[2]};
-      p.dir[0] = {r.dir[0], r.dir[1], r.dir[2]};
-      batch.push_back({r, payload(k, 0), 0, 0});
-    }
+    for (uint32_t k = 0; k < o.paths_in_flight && next < total_paths; ++k) start(k);
     stream.submit(batch.data(), batch.size());
-    auto finish = [&](Path& p) {
-      V3 sum{0, 0, 0};
-      for (const V3& c : p.slot) sum = add(sum, c);
-      float* out = &radiance[size_t(p.id % pixels * o.spp + p.id / pixels) * 3];
-      out[0] = sum.x, out[1] = sum.y, out[2] = sum.z;
-    };
     const rtpack::StreamStats st = stream.flush([&](const rtpack::StreamHit* hits, size_t n) {
       batch.clear();
       for (size_t j = 0; j < n; ++j) {
@@ -124,7 +130,7 @@ PathTraceResult path_trace(const rtpack::Package& pkg, const PathTraceOptions& o
           const V3 dir = p.dir[depth], org = p.org[depth];
           V3 n{h.normal[0], h.normal[1], h.normal[2]};
           if (!(dot(n, n) > 0)) {  // a degenerate triangle: the path ends here
-            if (--p.outstanding == 0) finish(p);
+            if (--p.outstanding == 0) finish(local);
             continue;
           }
           if (dot(n, dir) > 0) n = scale(n, -1);
@@ -151,13 +157,13 @@ PathTraceResult path_trace(const rtpack::Package& pkg, const PathTraceOptions& o
             ++p.outstanding;
           }
         }
-        if (--p.outstanding == 0) finish(p);
+        if (--p.outstanding == 0) finish(local);
       }
       stream.submit(batch.data(), batch.size());
     });
     res.waves.push_back(st);
     if (o.progress)
-      std::fprintf(stderr, "path-trace: wave %llu/%llu, %llu rays, %llu chunks loaded, %.2f s\n", (unsigned long long)(w + 1),
+      std::fprintf(stderr, "path-trace: wave %llu/%llu, %llu rays, %llu chunks loaded, %.2f s\n", (unsigned long long)w + 1,
                    (unsigned long long)n_waves, (unsigned long long)st.rays, (unsigned long long)st.chunks_loaded, st.seconds);
   }
   // Pixels: the mean of their samples in sample order, clamped, gamma 2.2.
@@ -182,4 +188,4 @@ PathTraceResult path_trace(const rtpack::Package& pkg, const PathTraceOptions& o
   return res;
 }
 
-}  // namespace rtp::tools
+}  // namespace pathtracer
