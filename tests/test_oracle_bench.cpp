@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <string>
 
@@ -180,6 +181,47 @@ TEST_F(OracleBench, OutOfCoreRecordsAreBestOfRepsAndChecked) {
   EXPECT_EQ(in_core, 2u);
   EXPECT_EQ(ooc, 8u);  // 2 kinds x 2 budgets x culling on and off
   EXPECT_EQ(runs.size(), 4u);
+}
+
+// --kinds path: the path workload at each budget with culling on and off, every image equal to the in-core
+// render (else exit 4), visits and culled visits reported, Embree's time on the same paths in the run.
+TEST_F(OracleBench, PathWorkloadRecordsEqualTheInCoreImage) {
+  const std::string scene = kSamples + "/generated/forest-small.glb";
+  const fs::path pkg = fs::temp_directory_path() / ("rtp_oracle_bench_path_" + std::to_string(getpid()) + ".rtp");
+  const std::string convert =
+      std::string(RTP_BINARY_DIR "/rtpack-convert") + " -q --chunk-target 2000 " + q(scene) + " -o " + q(pkg.string());
+  ASSERT_EQ(std::system(convert.c_str()), 0) << convert;
+  const ToolRun r = run(q(scene) + " --out-of-core " + q(pkg.string()) +
+                        " --kinds path --budgets 100,20 --path-size 48x36 --paths-in-flight 256 --reps 1 --threads 1 --json");
+  const ToolRun bad = run(q(scene) + " --out-of-core " + q(pkg.string()) + " --kinds path --path-size 48");
+  fs::remove(pkg);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["mode"], "path");
+  EXPECT_GT(j["in_core"]["seconds"].get<double>(), 0.0);
+  EXPECT_GT(j["in_core"]["rays"].get<uint64_t>(), uint64_t(48 * 36));  // camera rays and what they spawned
+  EXPECT_GT(j["embree"]["seconds"].get<double>(), 0.0);
+  EXPECT_LT(j["embree"]["pixels_differ"].get<uint64_t>(), uint64_t(48 * 36 / 20)) << j["embree"].dump();
+  std::set<std::pair<double, bool>> runs;
+  uint64_t culled = 0;
+  std::map<double, uint64_t> peak;  // the most resident (tables + cache + rays) per budget
+  for (const json& rec : j["records"]) {
+    runs.insert({rec["budget_percent"].get<double>(), rec["cull"].get<bool>()});
+    EXPECT_TRUE(rec["identical_to_in_core"].get<bool>()) << rec.dump();
+    EXPECT_GT(rec["batching_point_visits"].get<uint64_t>(), 0u) << rec.dump();
+    EXPECT_GT(rec["chunks_loaded"].get<uint64_t>(), 0u) << rec.dump();
+    EXPECT_GT(rec["vs_embree"].get<double>(), 0.0);
+    peak[rec["budget_percent"].get<double>()] =
+        std::max(peak[rec["budget_percent"].get<double>()], rec["peak_resident_bytes"].get<uint64_t>());
+    if (rec["cull"].get<bool>())
+      culled += rec["culled_visits"].get<uint64_t>();
+    else
+      EXPECT_EQ(rec["culled_visits"].get<uint64_t>(), 0u) << rec.dump();
+  }
+  EXPECT_EQ(runs.size(), 4u);      // 2 budgets x culling on and off
+  EXPECT_GT(culled, 0u);           // the forest's DAGs cull some of the queued visits
+  EXPECT_LT(peak[20], peak[100]);  // the budget bounds what is resident
+  EXPECT_EQ(bad.code, 1);          // --path-size without a height is a usage error
 }
 
 // --hot-rays N times each kind's first N rays over and over (the cost in instructions, data cached): the

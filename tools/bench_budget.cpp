@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_convert.h"
+#include "cli_checks.h"
 #include "core/error.h"
 #include "core/output_file.h"
 #include "core/progress.h"
@@ -56,20 +57,22 @@ CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg) {
   return ooc;
 }
 
-int run_budget_bench(BudgetBenchConfig cfg) {
+void parse_budgets(BudgetBenchConfig& cfg) {
   if (!cfg.budgets_text.empty()) {
     cfg.budgets.clear();
-    for (size_t a = 0; a <= cfg.budgets_text.size();) {
-      const size_t b = std::min(cfg.budgets_text.find(',', a), cfg.budgets_text.size());
-      const std::string item = cfg.budgets_text.substr(a, b - a);
-      a = b + 1;
+    for (const std::string& item : rtp::tools::split_list(cfg.budgets_text)) {
       char* end = nullptr;
       const double v = std::strtod(item.c_str(), &end);
       if (item.empty() || *end != '\0' || !(v > 0 && v <= 100))
         throw Error(ExitCode::kUsage, "--budgets: '" + item + "' is not a percentage in (0, 100]");
       cfg.budgets.push_back(v);
     }
+    cfg.budgets_text.clear();
   }
+}
+
+int run_budget_bench(BudgetBenchConfig cfg) {
+  parse_budgets(cfg);
   std::unique_ptr<tbb::global_control> limit;
   if (cfg.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, cfg.threads);
   FILE* out = cfg.json ? stderr : stdout;

@@ -36,4 +36,7 @@ CLI::Option* add_budget_options(CLI::App& app, BudgetBenchConfig& cfg);
 // --budgets list.
 int run_budget_bench(BudgetBenchConfig cfg);
 
+// Parses --budgets (cfg.budgets_text) into cfg.budgets; throws a usage Error naming a bad item.
+void parse_budgets(BudgetBenchConfig& cfg);
+
 }  // namespace rtp::bench

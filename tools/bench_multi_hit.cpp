@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_convert.h"
+#include "cli_checks.h"
 #include "bench_timing.h"
 #include "bvh/bvh.h"
 #include "core/error.h"
@@ -55,10 +56,7 @@ CLI::Option* add_multi_hit_options(CLI::App& app, MultiHitBenchConfig& cfg) {
 }
 
 int run_multi_hit_bench(MultiHitBenchConfig cfg) {
-  for (size_t a = 0; a <= cfg.ks_text.size();) {
-    const size_t b = std::min(cfg.ks_text.find(',', a), cfg.ks_text.size());
-    const std::string item = cfg.ks_text.substr(a, b - a);
-    a = b + 1;
+  for (const std::string& item : rtp::tools::split_list(cfg.ks_text)) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     if (item.empty() || *end != '\0' || v < 1 || v > long(kMaxMultiHit))

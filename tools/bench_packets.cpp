@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_agreement.h"
+#include "cli_checks.h"
 #include "bench_convert.h"
 #include "bench_timing.h"
 #include "bvh/bvh.h"
@@ -29,10 +30,7 @@ constexpr size_t kPacketGrain = 256;  // a multiple of 16: no packet straddles t
 
 std::vector<uint32_t> parse_packet_sizes(const std::string& text) {
   std::vector<uint32_t> out;
-  for (size_t a = 0; a <= text.size();) {
-    const size_t b = std::min(text.find(',', a), text.size());
-    const std::string item = text.substr(a, b - a);
-    a = b + 1;
+  for (const std::string& item : rtp::tools::split_list(text)) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     if (item.empty() || *end != '\0' || v < 0 || !packet_size_ok(uint32_t(v)))

@@ -5,11 +5,13 @@
 // (CLI::PositiveNumber's lower bound is DBL_MIN: "Value 0 not in range 0.000000 to 1797693134862315...").
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 namespace rtp::tools {
 
@@ -48,5 +50,16 @@ inline CLI::Validator unsigned_integer() {
 // --chunk-target (rtpack-convert, rtpack-bench --convert): 1 to 2^53 triangles; beyond that the uint64
 // conversion saturated silently.
 inline CLI::Validator chunk_target_range() { return finite_range(1, 9007199254740992.0); }
+
+// The items of a comma-separated list option ("100,50,25"), empty items kept so the caller names them.
+inline std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> items;
+  for (size_t a = 0; a <= text.size();) {
+    const size_t b = std::min(text.find(',', a), text.size());
+    items.push_back(text.substr(a, b - a));
+    a = b + 1;
+  }
+  return items;
+}
 
 }  // namespace rtp::tools

@@ -13,28 +13,12 @@
 #include "core/progress.h"
 #include "image/image.h"
 #include "path_trace.h"
+#include "stream_stats_json.h"
 #include "reader/reader.h"
 #include "trace/tracer.h"
 
 namespace rtp::tools {
 namespace {
-
-nlohmann::json stats_json(const rtpack::StreamStats& s) {
-  return {{"rays", s.rays},
-          {"rounds", s.rounds},
-          {"passes", s.passes},
-          {"batching_point_visits", s.batching_point_visits},
-          {"culled_visits", s.culled_visits},
-          {"dag_tests", s.dag_tests},
-          {"chunks_loaded", s.chunks_loaded},
-          {"bytes_read", s.bytes_read},
-          {"raw_bytes_loaded", s.raw_bytes_loaded},
-          {"peak_resident_bytes", s.peak_resident_bytes},
-          {"seconds", s.seconds},
-          {"load_seconds", s.load_seconds},
-          {"trace_seconds", s.trace_seconds},
-          {"walk_seconds", s.walk_seconds}};
-}
 
 void print_row(const char* name, const rtpack::StreamStats& s) {
   std::fprintf(stderr, "%8s %12llu %12llu %12llu %8llu %10.1f %8.3f\n", name, (unsigned long long)s.rays,
@@ -89,7 +73,7 @@ int render(const PathTraceCommand& c) {
   write_output_file(c.image, bytes.data(), bytes.size());
   if (c.json) {
     nlohmann::json waves = nlohmann::json::array();
-    for (const rtpack::StreamStats& s : r.waves) waves.push_back(stats_json(s));
+    for (const rtpack::StreamStats& s : r.waves) waves.push_back(rtp::tools::stream_stats_json(s));
     nlohmann::json j = {{"image", c.image},
                         {"width", c.width},
                         {"height", c.height},
@@ -107,7 +91,7 @@ int render(const PathTraceCommand& c) {
                         {"seconds", r.seconds},
                         {"peak_rss_mib", peak_rss_mib()},
                         {"waves", waves},
-                        {"total", stats_json(r.total)}};
+                        {"total", rtp::tools::stream_stats_json(r.total)}};
     std::cout << j.dump(2) << "\n";
     return 0;
   }

@@ -42,6 +42,7 @@
 #include "bench_agreement.h"
 #include "bench_kinds.h"
 #include "bench_budget.h"
+#include "bench_paths.h"
 #include "bench_convert.h"
 #include "bench_dag.h"
 #include "bench_multi_hit.h"
@@ -389,8 +390,10 @@ int main(int argc, char** argv) {
                  "also read external buffers from DIR (repeatable; default: only inside the glTF's directory)");
   app.add_option("--rays", cfg.rays, "rays per kind (default 65536; 524288 with --all)")
       ->check(CLI::Range(size_t(1), size_t(1) << 30));
-  app.add_option("--kinds", kinds,
-                 "comma-separated: primary,random,bounce,shadow,inside,short (default primary,random,bounce,shadow)");
+  app.add_option(
+      "--kinds", kinds,
+      "comma-separated: primary,random,bounce,shadow,inside,short, and path with --out-of-core (a path tracer through the "
+      "ray stream; default primary,random,bounce,shadow)");
   app.add_option("--width", width, "BVH width W (= leaf block B): 4, 8, 16 or all (default 8)");
   app.add_option("--threads", threads, "thread count or all (1, 2, 4, ... up to the hardware threads; default all)");
   app.add_option("--order", order, "traversal order: octant, active or all (default octant)");
@@ -449,6 +452,8 @@ int main(int argc, char** argv) {
   convert_flag->excludes(all_flag);
   bench::BudgetBenchConfig budget;
   CLI::Option* ooc_opt = bench::add_budget_options(app, budget);
+  bench::PathBenchConfig paths;
+  bench::add_path_options(app, paths, ooc_opt);
   ooc_opt->excludes(convert_flag)->excludes(build_stats)->excludes(all_flag)->excludes(hot_opt);
   bench::DagBenchConfig dag;
   CLI::Option* dag_opt = bench::add_dag_options(app, dag);
@@ -483,12 +488,18 @@ int main(int argc, char** argv) {
     if (!app.count("--order")) order = "all";
     if (!app.count("--rays")) cfg.rays = size_t(1) << 19;
   }
+  bool path_kind = false;  // --kinds path: the renderer's workload, --out-of-core only (bench_paths.h)
   for (const std::string& k : split_list(kinds)) {
+    if (k == "path" && app.count("--out-of-core")) {
+      path_kind = true;
+      continue;
+    }
     const auto kind = parse_ray_kind(k);
-    if (!kind) return usage("unknown ray kind '" + k + "' (primary, random, bounce, shadow, inside, short)");
+    if (!kind)
+      return usage("unknown ray kind '" + k + "' (primary, random, bounce, shadow, inside, short; path with --out-of-core)");
     if (std::find(cfg.kinds.begin(), cfg.kinds.end(), *kind) == cfg.kinds.end()) cfg.kinds.push_back(*kind);
   }
-  if (cfg.kinds.empty()) return usage("--kinds is empty");
+  if (cfg.kinds.empty() && !path_kind) return usage("--kinds is empty");
   if (cfg.hot_rays > cfg.rays)
     return usage("--hot-rays " + std::to_string(cfg.hot_rays) + " is more than --rays " + std::to_string(cfg.rays));
   if (width == "all")
@@ -551,7 +562,9 @@ int main(int argc, char** argv) {
         };
         if (app.count("--out-of-core")) {
           shared(budget);
-          return bench::run_budget_bench(budget);
+          if (path_kind && cfg.kinds.empty()) return bench::run_path_bench(budget, paths);
+          const int rc = bench::run_budget_bench(budget);
+          return rc != 0 || !path_kind ? rc : bench::run_path_bench(budget, paths);
         }
         if (app.count("--multi-hit")) {
           shared(multi);

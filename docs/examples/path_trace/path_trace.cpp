@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
+#include <utility>
 
 namespace pathtracer {
 namespace {
@@ -68,18 +70,30 @@ uint64_t payload(uint32_t local, uint32_t slot) { return uint64_t(local) << 8 | 
 }  // namespace
 
 PathTraceResult path_trace(const rtpack::Package& pkg, const PathTraceOptions& o) {
+  struct Stream final : RayTracer {
+    rtpack::RayStream s;
+    explicit Stream(rtpack::RayStream&& stream) : s(std::move(stream)) {}
+    void submit(const rtpack::StreamRay* rays, size_t count) override { s.submit(rays, count); }
+    rtpack::StreamStats flush(const std::function<void(const rtpack::StreamHit*, size_t)>& on_hits) override {
+      return s.flush(on_hits);
+    }
+  };
+  rtpack::StreamOptions so = o.stream;
+  so.max_in_flight = std::max<uint32_t>(1024, 2 * o.paths_in_flight);
+  Stream stream(pkg.stream(so));
+  return path_trace(stream, pkg.camera_rays(o.width, o.height, o.camera), pkg.info().bounds, o);
+}
+
+PathTraceResult path_trace(RayTracer& stream, const std::vector<rtpack::Ray>& camera, const rtpack::Bounds& b,
+                           const PathTraceOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   const size_t pixels = size_t(o.width) * size_t(o.height);
-  const std::vector<rtpack::Ray> camera = pkg.camera_rays(o.width, o.height, o.camera);
-  const rtpack::Bounds& b = pkg.info().bounds;
+  if (camera.size() != pixels) throw std::invalid_argument("path_trace: the camera has not width x height rays");
   const float diag = std::sqrt((b.hi[0] - b.lo[0]) * (b.hi[0] - b.lo[0]) + (b.hi[1] - b.lo[1]) * (b.hi[1] - b.lo[1]) +
                                (b.hi[2] - b.lo[2]) * (b.hi[2] - b.lo[2]));
   const uint32_t slots = 2 * (o.bounces + 1);
   const uint64_t total_paths = uint64_t(pixels) * o.spp;
   std::vector<float> radiance(size_t(total_paths) * 3);
-  rtpack::StreamOptions so = o.stream;
-  so.max_in_flight = std::max<uint32_t>(1024, 2 * o.paths_in_flight);
-  rtpack::RayStream stream = pkg.stream(so);
   PathTraceResult res;
   res.paths = total_paths;
   std::vector<Path> paths(o.paths_in_flight);
