@@ -121,6 +121,9 @@ void add_path_options(CLI::App& app, PathBenchConfig& cfg, CLI::Option* ooc) {
                  "--out-of-core --kinds path: comma-separated paths traced at once (default 4096,16384)")
       ->needs(ooc);
   app.add_option("--path-size", cfg.size, "--out-of-core --kinds path: image size WxH (default 512x512)")->needs(ooc);
+  app.add_option("--path-camera", cfg.camera, "--out-of-core --kinds path: the package's camera (default: the first)")
+      ->check(CLI::Range(0, 1 << 20))
+      ->needs(ooc);
   app.add_option("--spp", cfg.spp, "--out-of-core --kinds path: samples per pixel (default 1)")
       ->check(CLI::Range(1u, 4096u))
       ->needs(ooc);
@@ -138,6 +141,7 @@ int run_path_bench(BudgetBenchConfig b, PathBenchConfig cfg) {
       po.height > 16384)
     throw Error(ExitCode::kUsage, "--path-size " + cfg.size + ": expected WxH, e.g. 512x512");
   po.spp = cfg.spp, po.bounces = cfg.bounces, po.seed = b.seed, po.refill = cfg.refill;
+  po.camera = cfg.camera;
   po.stream.threads = b.threads;
   po.stream.isa = b.isa == Isa::kAvx512 ? rtpack::Isa::kAvx512 : b.isa == Isa::kAvx2 ? rtpack::Isa::kAvx2 : rtpack::Isa::kScalar;
   std::unique_ptr<tbb::global_control> limit;

@@ -18,10 +18,11 @@ struct PathBenchConfig {
   std::string paths_text;  // --paths-in-flight as given
   std::string size = "512x512";
   uint32_t spp = 1, bounces = 2;
+  int camera = -1;  // the package's glTF camera (-1: the first, or one framing the scene)
   bool refill = false;
 };
 
-// Registers --paths-in-flight, --path-size, --spp, --bounces and --refill (each needs `ooc`).
+// Registers --paths-in-flight, --path-size, --path-camera, --spp, --bounces and --refill (each needs `ooc`).
 void add_path_options(CLI::App& app, PathBenchConfig& cfg, CLI::Option* ooc);
 
 // Prints the table (stdout, or stderr with --json, the records then on stdout). Returns kInternal when an

@@ -1,7 +1,7 @@
 // rtpack-make-scene: deterministic generator of test scenes (.glb) built from real sample meshes.
 //
 //   rtpack-make-scene gallery -o gallery.glb [--count 12] [--spacing 2]
-//   rtpack-make-scene forest  -o forest.glb  [--count 3000] [--seed 1] [--refine 1] [--unique]
+//   rtpack-make-scene forest  -o forest.glb  [--count 3000] [--seed 1] [--refine 1] [--unique] [--ground-camera]
 //   rtpack-make-scene far     -o far.glb     [--base gallery|forest]
 //
 // Source meshes: every triangle rtp::Mesh that rtp::import_gltf returns for each --mesh file (default:
@@ -87,7 +87,8 @@ struct Options {
   double spacing = 2.0;
   int refine = -1;  // -1: 1 for forest content, 0 otherwise
   std::vector<std::string> meshes, allow_paths;
-  bool unique = false;  // forest: every instance its own perturbed mesh (no GPU instancing)
+  bool unique = false;         // forest: every instance its own perturbed mesh (no GPU instancing)
+  bool ground_camera = false;  // forest: a second camera at eye level, looking into the forest
   bool forest_content() const { return kind == "forest" || (kind == "far" && base == "forest"); }
 };
 
@@ -249,6 +250,21 @@ void add_cameras(GlbBuilder& g, int parent, const rtp::Vec3d& center, double rad
   g.add_node(std::move(node), parent);
 }
 
+// forest --ground-camera: a perspective camera at eye height (0.6 of a normalized mesh) a row outside the
+// grid's +z edge, looking along -z 4 degrees down, so that trees hide trees behind them (the occlusion
+// the path workload of issue 54 needs; the camera from above sees mostly the gaps between trees).
+void add_ground_camera(GlbBuilder& g, int parent, double side, double spacing) {
+  const double yfov = 0.8, pitch = 4.0 * kPi / 180.0;
+  g.doc["cameras"].push_back({{"name", "ground"},
+                              {"type", "perspective"},
+                              {"perspective", {{"yfov", yfov}, {"aspectRatio", 1.0}, {"znear", 1e-2}, {"zfar", 4 * side + 10}}}});
+  json cam = {{"name", "camera_ground"},
+              {"camera", g.doc["cameras"].size() - 1},
+              {"translation", D3{0, 0.6, side / 2 + spacing}},
+              {"rotation", pitch_quat(-pitch)}};
+  g.add_node(std::move(cam), parent);
+}
+
 Totals build_gallery(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const Options& o, int root) {
   const size_t count = size_t(o.count), per_row = 4, rows = (count + per_row - 1) / per_row;
   const size_t mirrored = std::min<size_t>(2, count - 1);
@@ -377,6 +393,7 @@ Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const 
     totals = build_unique(g, meshes, attrs, o, root);
     const double side = double(grid) * o.spacing;
     add_cameras(g, root, {0, 0.5, 0}, 0.5 * std::sqrt(2 * side * side + 1.0), false);
+    if (o.ground_camera) add_ground_camera(g, root, side, o.spacing);
     return totals;
   }
   const uint64_t short_rotation_mesh = 1 % nm;
@@ -410,6 +427,7 @@ Totals build_forest(GlbBuilder& g, const std::vector<SourceMesh>& meshes, const 
   }
   const double side = double(grid) * o.spacing;
   add_cameras(g, root, {0, 0.5, 0}, 0.5 * std::sqrt(2 * side * side + 1.0), false);
+  if (o.ground_camera) add_ground_camera(g, root, side, o.spacing);
   g.doc["extensionsUsed"] = json::array({kInstancing});
   return totals;
 }
@@ -485,6 +503,8 @@ int main(int argc, char** argv) {
   CLI::Option* unique = app.add_flag("--unique", o.unique,
                                      "forest: every instance its own mesh, a copy of its source with every vertex moved by "
                                      "a per-copy hash (unique geometry, no GPU instancing)");
+  CLI::Option* ground = app.add_flag("--ground-camera", o.ground_camera,
+                                     "forest: a second camera (index 1) at eye level outside the grid, looking into the forest");
   app.add_option("--spacing", o.spacing, "grid spacing; meshes are normalized to size 1 (default 2)")
       ->check(rtp::tools::finite_range(1e-3, 1e5));
   app.add_option("--mesh", o.meshes, "source glTF file, repeatable (default: Suzanne, Lantern, BoomBox samples)")
@@ -498,6 +518,7 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
     if (base->count() > 0 && o.kind != "far") throw CLI::ValidationError("--base", "only applies to kind 'far'");
     if (unique->count() > 0 && o.kind != "forest") throw CLI::ValidationError("--unique", "only applies to kind 'forest'");
+    if (ground->count() > 0 && o.kind != "forest") throw CLI::ValidationError("--ground-camera", "only applies to kind 'forest'");
   } catch (const CLI::ParseError& e) {
     return rtp::tools::parse_error_exit(app, e, "rtpack-make-scene", argc, argv);
   }
