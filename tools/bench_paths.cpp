@@ -1,6 +1,7 @@
 // rtpack-bench --out-of-core --kinds path (bench_paths.h).
 #include "bench_paths.h"
 
+#include <cstring>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -44,7 +45,8 @@ class EmbreePaths final : public pathtracer::RayTracer {
       pending_.clear();
       const size_t n = current_.size();
       rays_.resize(n), hits_.resize(n), occluded_.resize(n), out_.resize(n);
-      for (size_t i = 0; i < n; ++i) rays_[i] = reinterpret_cast<const fmt::Ray&>(current_[i].ray);
+      static_assert(sizeof(fmt::Ray) == sizeof(rtpack::Ray), "the public ray is the package's ray");
+      for (size_t i = 0; i < n; ++i) std::memcpy(&rays_[i], &current_[i].ray, sizeof(fmt::Ray));  // no type punning
       // Closest and any-hit rays apart, each kind in one call (their order kept).
       closest_.clear(), any_.clear();
       for (size_t i = 0; i < n; ++i) (current_[i].any ? any_ : closest_).push_back(i);
